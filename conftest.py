@@ -1,0 +1,96 @@
+"""Session-wide isolation for every test that touches ROS.
+
+Each pytest session gets its own ROS_DOMAIN_ID (held with a lock file so that two sessions on
+this shared machine never pick the same one), localhost-only discovery, and ROS_HOME/ROS_LOG_DIR
+in a temporary directory. This runs before any test module imports rclpy.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import IO, Any
+
+import pytest
+
+_DOMAIN_RANGE = range(11, 100)
+_held: list[IO[str]] = []
+
+
+def _claim_domain_id() -> int:
+    lock_dir = Path(tempfile.gettempdir()) / 'activesurv-ros-domains'
+    lock_dir.mkdir(exist_ok=True)
+    start = os.getpid() % len(_DOMAIN_RANGE)
+    ids = list(_DOMAIN_RANGE)
+    for k in range(len(ids)):
+        domain = ids[(start + k) % len(ids)]
+        handle = open(lock_dir / f'{domain}.lock', 'w')  # noqa: SIM115 - held for the session
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _held.append(handle)
+        return domain
+    raise RuntimeError('no free ROS_DOMAIN_ID for this test session')
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if os.environ.get('ACTIVESURV_TEST_ISOLATED') == '1':
+        return  # a nested pytest (or a child) keeps the parent's domain
+    ros_home = Path(tempfile.mkdtemp(prefix='activesurv-test-ros-'))
+    os.environ['ROS_DOMAIN_ID'] = str(_claim_domain_id())
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ['ROS_HOME'] = str(ros_home)
+    os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
+    os.environ['ACTIVESURV_TEST_ISOLATED'] = '1'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return (
+        f'ROS isolation: ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID")} '
+        f'discovery={os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")} '
+        f'ROS_HOME={os.environ.get("ROS_HOME")}'
+    )
+
+
+@pytest.fixture(scope='session')
+def rclpy_context() -> Iterator[Any]:
+    """rclpy initialised once for the session (in-process node tests)."""
+    import rclpy
+
+    rclpy.init()
+    try:
+        yield rclpy
+    finally:
+        rclpy.try_shutdown()
+
+
+@pytest.fixture
+def spin_until(rclpy_context: Any) -> Callable[..., bool]:
+    """Spin the given nodes until ``predicate()`` holds or ``timeout`` seconds pass."""
+    import time
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    def _spin(nodes: list[Any], predicate: Callable[[], bool], timeout: float = 10.0) -> bool:
+        executor = SingleThreadedExecutor()
+        for node in nodes:
+            executor.add_node(node)
+        deadline = time.monotonic() + timeout
+        try:
+            while time.monotonic() < deadline:
+                if predicate():
+                    return True
+                executor.spin_once(timeout_sec=0.05)
+            return predicate()
+        finally:
+            for node in nodes:
+                executor.remove_node(node)
+            executor.shutdown()
+
+    return _spin

@@ -1,0 +1,1 @@
+"""Configurations, orchestration, experiments, rosbag2 recording and replay, evaluation and reports."""

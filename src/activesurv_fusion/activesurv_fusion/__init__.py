@@ -1,0 +1,1 @@
+"""Fault-tolerant Optimal Region fusion of per-camera marker poses."""

@@ -1,0 +1,182 @@
+"""Fault-tolerant Optimal Region fusion of one scalar variable (paper Section III-D-2, eq. 5-8).
+
+Each concrete reading ``X`` with accuracy ``delta`` becomes an abstract sensor, the closed interval
+``[X - delta, X + delta]``. With ``k`` intervals of which at most ``k_f`` may be faulty, the
+*probable regions* are the maximal intervals on which the number of covering abstract sensors is
+constant and at least ``k - k_f``; ``s_j`` is that number. The *optimal region* is the smallest
+interval that contains every probable region, and the fused value is
+
+    L = sum_j(q_j * s_j) / sum_j(s_j)                                           (eq. 8)
+
+over the probable-region centres ``q_j``. A sensor that covers no probable region is faulty.
+The default ``k_f`` is the largest one with ``k_f < k / 2`` (eq. 7): then the optimal region is
+guaranteed to contain the true value (Marzullo 1990).
+
+Cost: one sort of the 2k end points plus binary searches, O(k log k).
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_left, bisect_right
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
+
+__all__ = [
+    'NoConsensusError',
+    'OptimalRegion',
+    'abstract_interval',
+    'default_max_faulty',
+    'optimal_region',
+]
+
+
+@dataclass(frozen=True)
+class OptimalRegion:
+    """Result of fusing one variable.
+
+    Attributes:
+        estimate: the fused value L (eq. 8).
+        lower: lower bound of the optimal region.
+        upper: upper bound of the optimal region.
+        probable_regions: (lower, upper, count) of every probable region, in increasing order.
+        faulty: indices (into the input) of the intervals that cover no probable region.
+        max_faulty: the k_f used.
+        threshold: k - k_f, the coverage a probable region needs.
+    """
+
+    estimate: float
+    lower: float
+    upper: float
+    probable_regions: tuple[tuple[float, float, int], ...]
+    faulty: tuple[int, ...]
+    max_faulty: int
+    threshold: int
+
+
+def default_max_faulty(k: int) -> int:
+    """The largest k_f with k_f < k / 2 (eq. 7)."""
+    return max((k - 1) // 2, 0)
+
+
+def abstract_interval(reading: float, sigma: float, z: float = 3.0) -> tuple[float, float]:
+    """The abstract sensor of a reading: ``[X - z*sigma, X + z*sigma]`` (eq. 5).
+
+    ``z = 3`` is the paper's 99.74 % confidence.
+
+    Raises:
+        InvalidReadingError: for a non-finite reading, or a sigma or z that is not finite and > 0.
+    """
+    if not math.isfinite(reading):
+        raise InvalidReadingError(f'reading must be finite, got {reading}')
+    if not (math.isfinite(sigma) and sigma > 0.0):
+        raise InvalidReadingError(f'sigma must be finite and positive, got {sigma}')
+    if not (math.isfinite(z) and z > 0.0):
+        raise InvalidReadingError(f'z must be finite and positive, got {z}')
+    delta = z * sigma
+    return reading - delta, reading + delta
+
+
+def _validated(intervals: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    if len(intervals) == 0:
+        raise InvalidReadingError('optimal_region needs at least one interval, got none')
+    out: list[tuple[float, float]] = []
+    for i, pair in enumerate(intervals):
+        try:
+            lo, hi = (float(pair[0]), float(pair[1]))
+            if len(pair) != 2:
+                raise TypeError
+        except (TypeError, ValueError, IndexError) as exc:
+            raise InvalidReadingError(
+                f'interval {i} must be a (lower, upper) pair of numbers, got {pair!r}'
+            ) from exc
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise InvalidReadingError(f'interval {i} has a non-finite bound: ({lo}, {hi})')
+        if lo > hi:
+            raise InvalidReadingError(f'interval {i} has lower > upper: ({lo}, {hi})')
+        out.append((lo, hi))
+    return out
+
+
+def optimal_region(
+    intervals: Sequence[tuple[float, float]], max_faulty: int | None = None
+) -> OptimalRegion:
+    """Fuse abstract-sensor intervals with the Optimal Region algorithm.
+
+    Args:
+        intervals: one closed (lower, upper) interval per sensor.
+        max_faulty: the number of faulty sensors tolerated, k_f; ``None`` for the largest
+            k_f with k_f < k / 2.
+
+    Returns:
+        The optimal region, the fused estimate, the probable regions and the faulty sensors.
+
+    Raises:
+        ValueError: (an :class:`InvalidReadingError`) for empty input, a NaN or infinite bound,
+            lower > upper, or a ``max_faulty`` outside ``0 .. k - 1``.
+        NoConsensusError: when no point is covered by at least ``k - k_f`` intervals.
+    """
+    ivs = _validated(intervals)
+    k = len(ivs)
+    k_f = default_max_faulty(k) if max_faulty is None else int(max_faulty)
+    if not 0 <= k_f < k:
+        raise InvalidReadingError(f'max_faulty must be in 0..{k - 1} for {k} intervals, got {k_f}')
+    need = k - k_f
+
+    lows = sorted(lo for lo, _ in ivs)
+    highs = sorted(hi for _, hi in ivs)
+    points = sorted(set(lows) | set(highs))
+
+    def at_point(x: float) -> int:
+        # closed intervals containing x: lower <= x and upper >= x
+        return bisect_right(lows, x) - bisect_left(highs, x)
+
+    def in_gap(a: float) -> int:
+        # open gap (a, next point): lower <= a and upper > a
+        return bisect_right(lows, a) - bisect_right(highs, a)
+
+    # Elementary pieces in order: point p0, gap (p0, p1), point p1, ... ; merge equal counts.
+    regions: list[tuple[float, float, int]] = []
+    current: list[float] | None = None  # [start, end, count]
+    for idx, x in enumerate(points):
+        pieces = [(x, x, at_point(x))]
+        if idx + 1 < len(points):
+            pieces.append((x, points[idx + 1], in_gap(x)))
+        for start, end, count in pieces:
+            if current is not None and int(current[2]) == count:
+                current[1] = end
+                continue
+            if current is not None and int(current[2]) >= need:
+                regions.append((current[0], current[1], int(current[2])))
+            current = [start, end, float(count)]
+    if current is not None and int(current[2]) >= need:
+        regions.append((current[0], current[1], int(current[2])))
+
+    if not regions:
+        raise NoConsensusError(
+            f'no point is covered by {need} of the {k} intervals (k_f = {k_f}): '
+            'the readings disagree by more than their stated accuracy'
+        )
+
+    total = sum(s for _, _, s in regions)
+    estimate = sum(0.5 * (lo + hi) * s for lo, hi, s in regions) / total
+    starts = [lo for lo, _, _ in regions]
+    faulty: list[int] = []
+    for i, (lo, hi) in enumerate(ivs):
+        # Probable regions are disjoint and sorted: the first one starting at or after `lo`
+        # is the only candidate that could end at or before `hi`.
+        j = bisect_left(starts, lo)
+        if not (j < len(regions) and regions[j][1] <= hi):
+            faulty.append(i)
+
+    return OptimalRegion(
+        estimate=float(estimate),
+        lower=regions[0][0],
+        upper=regions[-1][1],
+        probable_regions=tuple(regions),
+        faulty=tuple(faulty),
+        max_faulty=k_f,
+        threshold=need,
+    )

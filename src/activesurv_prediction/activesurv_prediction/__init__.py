@@ -1,0 +1,1 @@
+"""Prediction module: overhead tracking of the top marker and Kalman prediction of demand points."""

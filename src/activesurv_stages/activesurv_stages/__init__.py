@@ -1,0 +1,1 @@
+"""Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol emulators, simulated stages and xy table."""

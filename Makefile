@@ -56,8 +56,8 @@ bench: setup
 	$(PY) bench/run.py --out bench/results.json
 
 lint: setup
-	$(VENV)/bin/ruff check src test bench
-	$(VENV)/bin/ruff format --check src test bench
+	$(VENV)/bin/ruff check src test bench conftest.py
+	$(VENV)/bin/ruff format --check src test bench conftest.py
 	$(VENV)/bin/mypy --strict $(CORE_DIRS)
 
 lock: setup

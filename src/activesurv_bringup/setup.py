@@ -19,7 +19,8 @@ setup(
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
     description=(
-        'Configurations, orchestration, experiments, rosbag2 recording and replay, evaluation and reports.'
+        'Configurations, orchestration, experiments, rosbag2 recording and replay, '
+        'evaluation and reports.'
     ),
     license='Apache-2.0',
     entry_points={

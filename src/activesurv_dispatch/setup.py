@@ -19,11 +19,11 @@ setup(
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
     description=(
-        'Dispatching module: visibility, best achievable poses, assignment, preassignment, replanning, motion control, initial poses.'
+        'Dispatching module: visibility, best achievable poses, assignment, '
+        'preassignment, replanning, motion control, initial poses.'
     ),
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

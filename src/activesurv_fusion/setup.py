@@ -18,9 +18,7 @@ setup(
     zip_safe=False,
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
-    description=(
-        'Fault-tolerant Optimal Region fusion of per-camera marker poses.'
-    ),
+    description=('Fault-tolerant Optimal Region fusion of per-camera marker poses.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

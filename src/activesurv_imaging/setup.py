@@ -19,11 +19,11 @@ setup(
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
     description=(
-        'Imaging module: camera models, simulated cameras, circular-marker detection, weighted ellipse fit, circle pose, sensor model, imager node.'
+        'Imaging module: camera models, simulated cameras, circular-marker detection, '
+        'weighted ellipse fit, circle pose, sensor model, imager node.'
     ),
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -19,11 +19,11 @@ setup(
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
     description=(
-        'Prediction module: overhead tracking of the top marker and Kalman prediction of demand points.'
+        'Prediction module: overhead tracking of the top marker and Kalman prediction of '
+        'demand points.'
     ),
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -19,11 +19,11 @@ setup(
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
     description=(
-        'Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol emulators, simulated stages and xy table.'
+        'Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol '
+        'emulators, simulated stages and xy table.'
     ),
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -1,1 +1,2 @@
-"""Configurations, orchestration, experiments, rosbag2 recording and replay, evaluation and reports."""
+"""Configurations, orchestration, experiments, rosbag2 recording and replay, evaluation and
+reports."""

@@ -48,10 +48,14 @@ def synthetic_demands(
             n = truth_n + rng.normal(0.0, sigma_n, 3)
             if cam == biased_camera:
                 p[0] += bias_sigmas * 3 * sigma_p  # outside its own 3-sigma abstract interval
-            obs.append(SyntheticObservation(
-                cam, tuple(p.tolist()), tuple((n / np.linalg.norm(n)).tolist()),
-                tuple(cov.reshape(-1).tolist()),
-            ))
+            obs.append(
+                SyntheticObservation(
+                    cam,
+                    tuple(p.tolist()),
+                    tuple((n / np.linalg.norm(n)).tolist()),
+                    tuple(cov.reshape(-1).tolist()),
+                )
+            )
         out.append((truth_p, truth_n, obs))
     return out
 
@@ -59,8 +63,9 @@ def synthetic_demands(
 def run_demo(out_dir: Path, seed: int = 1, timeout: float = 60.0) -> dict[str, Any]:
     """Start the graph, drive ten demands through it, collect and summarise the estimates."""
     import rclpy
-    from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
     out_dir.mkdir(parents=True, exist_ok=True)
     demands = synthetic_demands(10, seed)
@@ -69,7 +74,8 @@ def run_demo(out_dir: Path, seed: int = 1, timeout: float = 60.0) -> dict[str, A
     ]
     events = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
     results_qos = QoSProfile(
-        depth=20, reliability=ReliabilityPolicy.RELIABLE,
+        depth=20,
+        reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
     received: dict[int, Any] = {}
@@ -79,10 +85,11 @@ def run_demo(out_dir: Path, seed: int = 1, timeout: float = 60.0) -> dict[str, A
         try:
             req_pub = node.create_publisher(CaptureRequest, 'capture_request', events)
             obs_pub = node.create_publisher(MarkerObservation, 'marker_observations', events)
-            node.create_subscription(
-                TargetEstimate, 'target_estimate',
-                lambda m: received.__setitem__(int(m.demand_index), m), results_qos,
-            )
+
+            def on_estimate(msg: Any) -> None:
+                received[int(msg.demand_index)] = msg
+
+            node.create_subscription(TargetEstimate, 'target_estimate', on_estimate, results_qos)
             deadline = time.monotonic() + timeout
             print('demo: waiting for the fusion node to join the graph ...', flush=True)
             while req_pub.get_subscription_count() == 0 or obs_pub.get_subscription_count() == 0:
@@ -90,7 +97,7 @@ def run_demo(out_dir: Path, seed: int = 1, timeout: float = 60.0) -> dict[str, A
                 rclpy.spin_once(node, timeout_sec=0.1)
                 if time.monotonic() > deadline:
                     raise TimeoutError('the fusion node did not subscribe in time')
-            for j, (truth_p, truth_n, obs) in enumerate(demands):
+            for j, (_, truth_n, obs) in enumerate(demands):
                 now = node.get_clock().now().to_msg()
                 req = CaptureRequest(demand_index=j, camera_ids=list(DEMO_CAMERAS))
                 req.header.stamp = now
@@ -121,14 +128,16 @@ def run_demo(out_dir: Path, seed: int = 1, timeout: float = 60.0) -> dict[str, A
         m = received[j]
         est_p = np.array([m.position.x, m.position.y, m.position.z])
         est_n = np.array([m.normal.x, m.normal.y, m.normal.z])
-        rows.append({
-            'index': j,
-            'status': int(m.status),
-            'position_error': float(np.linalg.norm(est_p - truth_p)),
-            'orientation_error': float(np.arccos(np.clip(est_n @ truth_n, -1.0, 1.0))),
-            'cameras': list(m.cameras_used),
-            'faulty': list(m.cameras_faulty),
-        })
+        rows.append(
+            {
+                'index': j,
+                'status': int(m.status),
+                'position_error': float(np.linalg.norm(est_p - truth_p)),
+                'orientation_error': float(np.arccos(np.clip(est_n @ truth_n, -1.0, 1.0))),
+                'cameras': list(m.cameras_used),
+                'faulty': list(m.cameras_faulty),
+            }
+        )
     summary = {
         'ran': [s.fqn for s in specs] + ['/demo_driver (in-process, 4 synthetic cameras)'],
         'demands': rows,

@@ -81,7 +81,10 @@ class NodeProcess:
         self.log_path = workdir / f'{spec.fqn.strip("/").replace("/", "__")}.log'
         self._log: IO[bytes] = open(self.log_path, 'wb')  # noqa: SIM115 - closed in stop()
         self.process = subprocess.Popen(
-            self.command, stdout=self._log, stderr=subprocess.STDOUT, env=dict(env),
+            self.command,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            env=dict(env),
             start_new_session=True,
         )
         self.stopped_on_purpose = False
@@ -131,7 +134,9 @@ class Launcher:
     """
 
     def __init__(
-        self, specs: Sequence[NodeSpec], workdir: Path | None = None,
+        self,
+        specs: Sequence[NodeSpec],
+        workdir: Path | None = None,
         env: Mapping[str, str] | None = None,
     ) -> None:
         self.specs = list(specs)

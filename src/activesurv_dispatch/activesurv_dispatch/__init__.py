@@ -1,1 +1,2 @@
-"""Dispatching module: visibility, best achievable poses, assignment, preassignment, replanning, motion control, initial poses."""
+"""Dispatching module: visibility, best achievable poses, assignment, preassignment,
+replanning, motion control and initial-pose determination."""

@@ -128,9 +128,7 @@ class DemandCollector:
 
     def pop_ready(self, now: float) -> list[DemandBatch]:
         """Remove and return the demands that are complete or past their deadline, oldest first."""
-        ready = [
-            b for b in self._open.values() if b.complete() or now >= b.deadline
-        ]
+        ready = [b for b in self._open.values() if b.complete() or now >= b.deadline]
         ready.sort(key=lambda b: b.index)
         for b in ready:
             del self._open[b.index]
@@ -182,22 +180,30 @@ def resolve(batch: DemandBatch, z: float = 3.0, max_faulty: int | None = None) -
     if failed:
         notes.append(
             'failed: '
-            + '; '.join(
-                f'{c} ({batch.answers[c].reason or "no reason"})' for c in failed
-            )
+            + '; '.join(f'{c} ({batch.answers[c].reason or "no reason"})' for c in failed)
         )
     if not readings:
         reason = 'no usable observation' + (': ' + '; '.join(notes) if notes else '')
         return DemandResult(
-            batch.index, batch.demand_time, DemandStatus.NO_OBSERVATIONS, reason, None,
-            missing, failed,
+            batch.index,
+            batch.demand_time,
+            DemandStatus.NO_OBSERVATIONS,
+            reason,
+            None,
+            missing,
+            failed,
         )
     try:
         fused = fuse_poses(readings, z=z, max_faulty=max_faulty)
     except NoConsensusError as exc:
         return DemandResult(
-            batch.index, batch.demand_time, DemandStatus.NO_CONSENSUS, str(exc), None,
-            missing, failed,
+            batch.index,
+            batch.demand_time,
+            DemandStatus.NO_CONSENSUS,
+            str(exc),
+            None,
+            missing,
+            failed,
         )
     status = DemandStatus.PARTIAL if (missing or failed) else DemandStatus.OK
     if fused.cameras_faulty:

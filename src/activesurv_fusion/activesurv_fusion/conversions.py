@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
@@ -11,6 +10,7 @@ from activesurv_fusion.collector import Answer, DemandResult, DemandStatus, Outc
 from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
 from activesurv_imaging.geometry import normal_to_rotation_covariance, quaternion_from_normal
+from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
 
 def time_to_sec(stamp: Time) -> float:
@@ -19,7 +19,7 @@ def time_to_sec(stamp: Time) -> float:
 
 def sec_to_time(t: float) -> Time:
     sec = int(np.floor(t))
-    return Time(sec=sec, nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
+    return Time(sec=sec, nanosec=min(round((t - sec) * 1e9), 999_999_999))
 
 
 def request_fields(

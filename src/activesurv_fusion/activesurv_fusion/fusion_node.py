@@ -21,11 +21,14 @@ from types import FrameType
 from typing import Any
 
 import rclpy
-from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -40,27 +43,31 @@ from activesurv_fusion.conversions import (
     result_to_pose,
     time_to_sec,
 )
+from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
 
 class FusionNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('fusion', **kwargs)
         self.declare_parameter(
-            'collect_timeout', 2.0,
+            'collect_timeout',
+            2.0,
             ParameterDescriptor(
                 description='seconds after a demand instant to wait for missing cameras',
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=600.0)],
             ),
         )
         self.declare_parameter(
-            'z_sigma', 3.0,
+            'z_sigma',
+            3.0,
             ParameterDescriptor(
                 description='abstract-sensor half-width in standard deviations (3: 99.74 %)',
                 floating_point_range=[FloatingPointRange(from_value=0.1, to_value=10.0)],
             ),
         )
         self.declare_parameter(
-            'max_faulty', -1,
+            'max_faulty',
+            -1,
             ParameterDescriptor(
                 description='faulty cameras tolerated (k_f); -1: the largest k_f < k/2',
                 integer_range=[IntegerRange(from_value=-1, to_value=64, step=1)],
@@ -78,7 +85,9 @@ class FusionNode(Node):
         self._pose_pub = self.create_publisher(
             PoseWithCovarianceStamped, topics.TARGET_POSE, qos.RESULTS
         )
-        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self._diag_pub = self.create_publisher(
+            DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
+        )
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )

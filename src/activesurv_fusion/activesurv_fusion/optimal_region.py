@@ -18,7 +18,7 @@ Cost: one sort of the 2k end points plus binary searches, O(k log k).
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, bisect_right
+from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -123,36 +123,50 @@ def optimal_region(
     k_f = default_max_faulty(k) if max_faulty is None else int(max_faulty)
     if not 0 <= k_f < k:
         raise InvalidReadingError(f'max_faulty must be in 0..{k - 1} for {k} intervals, got {k_f}')
+    return optimal_region_unchecked(ivs, k_f)
+
+
+def optimal_region_unchecked(ivs: Sequence[tuple[float, float]], k_f: int) -> OptimalRegion:
+    """:func:`optimal_region` for intervals and k_f already validated (the pose-fusion path)."""
+    k = len(ivs)
     need = k - k_f
 
     lows = sorted(lo for lo, _ in ivs)
     highs = sorted(hi for _, hi in ivs)
-    points = sorted(set(lows) | set(highs))
 
-    def at_point(x: float) -> int:
-        # closed intervals containing x: lower <= x and upper >= x
-        return bisect_right(lows, x) - bisect_left(highs, x)
-
-    def in_gap(a: float) -> int:
-        # open gap (a, next point): lower <= a and upper > a
-        return bisect_right(lows, a) - bisect_right(highs, a)
-
-    # Elementary pieces in order: point p0, gap (p0, p1), point p1, ... ; merge equal counts.
+    # Sweep the distinct end points in order. At a point x the closed intervals that cover it
+    # are those started at or before x and not ended before x; in the open gap after x, those
+    # ended at x no longer count. Pieces (point, gap, point, ...) with equal counts merge into
+    # maximal regions; regions with count >= need are the probable regions.
     regions: list[tuple[float, float, int]] = []
-    current: list[float] | None = None  # [start, end, count]
-    for idx, x in enumerate(points):
-        pieces = [(x, x, at_point(x))]
-        if idx + 1 < len(points):
-            pieces.append((x, points[idx + 1], in_gap(x)))
-        for start, end, count in pieces:
-            if current is not None and int(current[2]) == count:
-                current[1] = end
-                continue
-            if current is not None and int(current[2]) >= need:
-                regions.append((current[0], current[1], int(current[2])))
-            current = [start, end, float(count)]
-    if current is not None and int(current[2]) >= need:
-        regions.append((current[0], current[1], int(current[2])))
+    cur_lo = cur_hi = 0.0
+    cur_count = -1
+    count = i = j = 0
+    while j < k:  # highs end last: every interval's upper bound is >= its lower bound
+        x = lows[i] if i < k and lows[i] <= highs[j] else highs[j]
+        while i < k and lows[i] == x:
+            count += 1
+            i += 1
+        if count == cur_count:
+            cur_hi = x
+        else:
+            if cur_count >= need:
+                regions.append((cur_lo, cur_hi, cur_count))
+            cur_lo = cur_hi = x
+            cur_count = count
+        while j < k and highs[j] == x:
+            count -= 1
+            j += 1
+        if j < k:
+            nxt = lows[i] if i < k and lows[i] < highs[j] else highs[j]
+            if count == cur_count:
+                cur_hi = nxt
+            else:
+                if cur_count >= need:
+                    regions.append((cur_lo, cur_hi, cur_count))
+                cur_lo, cur_hi, cur_count = x, nxt, count
+    if cur_count >= need:
+        regions.append((cur_lo, cur_hi, cur_count))
 
     if not regions:
         raise NoConsensusError(

@@ -17,7 +17,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
-from activesurv_fusion.optimal_region import OptimalRegion, abstract_interval, optimal_region
+from activesurv_fusion.optimal_region import (
+    OptimalRegion,
+    default_max_faulty,
+    optimal_region_unchecked,
+)
 
 VARIABLES = ('x', 'y', 'z', 'n_x', 'n_y', 'n_z')
 
@@ -97,12 +101,19 @@ class FusedPose:
     regions: tuple[OptimalRegion, ...]
 
 
+def _inverse(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    try:
+        return np.asarray(np.linalg.inv(m), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.pinv(m), dtype=np.float64)  # singular: pseudo-inverse
+
+
 def information_fusion(covariances: Sequence[NDArray[np.float64]]) -> NDArray[np.float64]:
-    """``P = (sum R_i^-1)^-1`` (eq. 2), computed with pseudo-inverses for robustness."""
+    """``P = (sum R_i^-1)^-1`` (eq. 2); singular matrices fall back to pseudo-inverses."""
     if not covariances:
         raise InvalidReadingError('information_fusion needs at least one covariance')
-    info = sum((np.linalg.pinv(c) for c in covariances), np.zeros_like(covariances[0]))
-    P = np.linalg.pinv(info)
+    info = _inverse(np.asarray(covariances, dtype=np.float64)).sum(axis=0)  # one batched inverse
+    P = _inverse(info)
     return np.asarray(0.5 * (P + P.T), dtype=np.float64)
 
 
@@ -131,14 +142,21 @@ def fuse_poses(
     if not (math.isfinite(z) and z > 0.0):
         raise InvalidReadingError(f'z must be finite and positive, got {z}')
 
+    # Readings were validated on creation (finite, positive variances): build all abstract
+    # sensors at once (eq. 5) instead of one call per reading and variable.
     values = np.array([r.values() for r in readings])
-    sigmas = np.sqrt(np.array([np.diag(r.covariance) for r in readings]))
+    deltas = z * np.sqrt(np.array([np.diag(r.covariance) for r in readings]))
+    lows, highs = (values - deltas).T.tolist(), (values + deltas).T.tolist()
+    k = len(readings)
+    k_f = default_max_faulty(k) if max_faulty is None else int(max_faulty)
+    if not 0 <= k_f < k:
+        raise InvalidReadingError(f'max_faulty must be in 0..{k - 1} for {k} readings, got {k_f}')
     regions: list[OptimalRegion] = []
     faulty: set[int] = set()
     for v, name in enumerate(VARIABLES):
-        intervals = [abstract_interval(values[i, v], sigmas[i, v], z) for i in range(len(ids))]
+        intervals = list(zip(lows[v], highs[v], strict=True))
         try:
-            region = optimal_region(intervals, max_faulty)
+            region = optimal_region_unchecked(intervals, k_f)
         except NoConsensusError as exc:
             raise NoConsensusError(f'variable {name}: {exc}') from exc
         regions.append(region)
@@ -149,8 +167,11 @@ def fuse_poses(
         # Every camera was faulty in some variable: no subset agrees on the whole pose.
         raise NoConsensusError(
             'every camera disagrees with the others in at least one variable: '
-            + ', '.join(f'{VARIABLES[v]} faulty {[ids[i] for i in r.faulty]}'
-                        for v, r in enumerate(regions) if r.faulty)
+            + ', '.join(
+                f'{VARIABLES[v]} faulty {[ids[i] for i in r.faulty]}'
+                for v, r in enumerate(regions)
+                if r.faulty
+            )
         )
     estimate = np.array([r.estimate for r in regions])
     normal = estimate[3:]
@@ -175,9 +196,7 @@ def weighted_mean_fusion(readings: Sequence[PoseReading]) -> NDArray[np.float64]
     Returns the fused (x, y, z, n_x, n_y, n_z) with the normal renormalised.
     """
     P = information_fusion([r.covariance for r in readings])
-    info_sum = sum(
-        (np.linalg.pinv(r.covariance) @ r.values() for r in readings), np.zeros(6)
-    )
+    info_sum = sum((np.linalg.pinv(r.covariance) @ r.values() for r in readings), np.zeros(6))
     out = P @ info_sum
     out[3:] /= np.linalg.norm(out[3:])
     return np.asarray(out, dtype=np.float64)

@@ -1,1 +1,2 @@
-"""Prediction module: overhead tracking of the top marker and Kalman prediction of demand points."""
+"""Prediction module: overhead tracking of the top marker and Kalman prediction of the
+demand points on the rolling horizon."""

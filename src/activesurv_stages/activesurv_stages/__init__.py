@@ -1,1 +1,2 @@
-"""Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol emulators, simulated stages and xy table."""
+"""Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol emulators,
+simulated stages and the xy table."""

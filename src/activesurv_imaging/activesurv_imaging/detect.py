@@ -1,0 +1,275 @@
+"""Find the circular marker in a grey image and fit its boundary ellipse.
+
+Pipeline:
+
+1. Contrast check: a black, saturated or flat frame has no marker.
+2. Otsu threshold; outer boundaries of the bright components (``RETR_CCOMP`` top level, so a
+   marker on a plate on a bright background is still found).
+3. Candidates: bright blobs large enough to matter. Each is rejected with a reason if it touches
+   the image border (marker partly out of view: an open contour), is outside the size range, or
+   is not an ellipse (area / ellipse area, coarse fit residual). Two accepted blobs are rejected
+   as "two markers": the pose of the wrong one would be confidently wrong.
+4. Sub-pixel boundary: each boundary pixel of the blob is moved along the coarse ellipse's normal
+   to where the grey-level profile crosses half-way between the local marker and plate levels
+   (bilinear interpolation, 0.25-px steps). For a blurred step edge this is the edge itself.
+5. Weighted least-squares ellipse fit (:func:`activesurv_imaging.ellipse.fit_ellipse`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_imaging.ellipse import Ellipse, fit_ellipse, sampson_distances
+from activesurv_imaging.errors import EllipseFitError, ImagingError
+
+Array = NDArray[np.float64]
+Fitter = Callable[[Array], Ellipse]
+
+
+class DetectionStatus(Enum):
+    OK = 'ok'
+    NOT_FOUND = 'not_found'  # nothing that could be a marker
+    REJECTED = 'rejected'  # something marker-like, but not one clean ellipse (see reason)
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Detector limits (pixels unless stated).
+
+    Attributes:
+        min_semi_minor: smaller blobs are noise, not candidates.
+        max_semi_major: larger ellipses are rejected as wrong size.
+        min_axis_ratio: b / a below this is rejected (the marker seen almost edge-on).
+        min_contrast: grey levels between marker and plate needed to trust an edge.
+        border_margin: a blob this close to the border is partly out of view.
+        max_fill_error: |blob area / ellipse area - 1| above this is not an ellipse.
+        max_coarse_residual: RMS distance of the blob contour to its coarse ellipse.
+        profile_half_length: edge search range along the normal.
+        subpixel: refine edges to sub-pixel (off: the boundary pixels are used as they are).
+    """
+
+    min_semi_minor: float = 4.0
+    max_semi_major: float = 400.0
+    min_axis_ratio: float = 0.12
+    min_contrast: float = 40.0
+    border_margin: int = 2
+    max_fill_error: float = 0.08
+    max_coarse_residual: float = 1.5
+    profile_half_length: float = 4.0
+    subpixel: bool = True
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Outcome of :func:`detect_marker_detailed`.
+
+    Attributes:
+        status: OK, NOT_FOUND or REJECTED.
+        reason: why not OK (empty when OK).
+        ellipse: the fitted ellipse when OK.
+        edge_points: (N, 2) boundary points the ellipse was fitted to.
+        candidates: how many marker-sized bright blobs were seen.
+    """
+
+    status: DetectionStatus
+    reason: str = ''
+    ellipse: Ellipse | None = None
+    edge_points: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    candidates: int = 0
+
+
+def as_gray8(image: ArrayLike) -> NDArray[np.uint8]:
+    """Check and return an 8-bit single-channel image (3-channel images are converted).
+
+    Raises:
+        ImagingError: for anything that is not an 8-bit image.
+    """
+    img = np.asarray(image)
+    if img.dtype != np.uint8:
+        raise ImagingError(f'expected an 8-bit image, got dtype {img.dtype}')
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    elif img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim != 2 or img.shape[0] < 8 or img.shape[1] < 8:
+        raise ImagingError(f'expected a grey image of at least 8x8 pixels, got {img.shape}')
+    return np.ascontiguousarray(img)
+
+
+def _coarse(contour: NDArray[np.int32]) -> Ellipse | None:
+    if len(contour) < 5:
+        return None
+    (cx, cy), (w, h), ang = cv2.fitEllipse(contour)
+    if not (w > 0 and h > 0):
+        return None
+    a, b = 0.5 * max(w, h), 0.5 * min(w, h)
+    angle = math.radians(ang) + (0.0 if w >= h else math.pi / 2)
+    return Ellipse(np.array([cx, cy]), (a, b), angle % math.pi)
+
+
+def _outward_normals(ell: Ellipse, pts: Array) -> Array:
+    A, B, C, D, E, _ = ell.conic()
+    x, y = pts[:, 0], pts[:, 1]
+    g = np.column_stack([2 * A * x + B * y + D, B * x + 2 * C * y + E])
+    g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    # Make them point away from the centre (the conic's sign is arbitrary).
+    flip = np.sum(g * (pts - ell.center), axis=1) < 0
+    g[flip] *= -1
+    return g
+
+
+def subpixel_edges(
+    image: NDArray[np.uint8], boundary: Array, coarse: Ellipse, config: DetectorConfig
+) -> Array:
+    """Move boundary pixels to the half-way crossing of the grey-level profile across the edge."""
+    normals = _outward_normals(coarse, boundary)
+    steps = np.arange(-config.profile_half_length, config.profile_half_length + 1e-9, 0.25)
+    xs = (boundary[:, 0:1] + normals[:, 0:1] * steps[None, :]).astype(np.float32)
+    ys = (boundary[:, 1:2] + normals[:, 1:2] * steps[None, :]).astype(np.float32)
+    prof = cv2.remap(
+        image.astype(np.float32), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    ).astype(np.float64)
+    quarter = max(len(steps) // 4, 1)
+    bright = prof[:, :quarter].mean(axis=1)  # inside the marker
+    dark = prof[:, -quarter:].mean(axis=1)  # on the plate
+    contrast = bright - dark
+    mid = 0.5 * (bright + dark)
+    below = prof < mid[:, None]
+    # First sample (from inside out) below the mid level, after the last one above it that is
+    # still inside: search from the centre of the profile outwards for robustness.
+    first = np.argmax(below, axis=1)
+    ok = (contrast >= config.min_contrast) & below.any(axis=1) & (first > 0)
+    idx = np.nonzero(ok)[0]
+    f = first[idx]
+    v0 = prof[idx, f - 1]
+    v1 = prof[idx, f]
+    frac = (v0 - mid[idx]) / np.maximum(v0 - v1, 1e-9)
+    t = steps[f - 1] + 0.25 * np.clip(frac, 0.0, 1.0)
+    return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64)
+
+
+def detect_marker_detailed(
+    image: ArrayLike, config: DetectorConfig | None = None, fitter: Fitter | None = None
+) -> Detection:
+    """Detect the marker and say why not when there is none.
+
+    Args:
+        image: 8-bit grey image (3-channel is converted).
+        config: detector limits.
+        fitter: ellipse fitter for the boundary points (default: the weighted fit of eq. 3-4);
+            the benchmark swaps in OpenCV's fitters here.
+
+    Raises:
+        ImagingError: if ``image`` is not an 8-bit image.
+    """
+    cfg = DetectorConfig() if config is None else config
+    fit: Fitter = fit_ellipse if fitter is None else fitter
+    img = as_gray8(image)
+    # Percentiles from the 256-bin histogram: a full-frame sort costs milliseconds.
+    cdf = np.cumsum(np.bincount(img.ravel(), minlength=256)) / img.size
+    lo, hi = int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
+    if hi - lo < cfg.min_contrast:
+        return Detection(
+            DetectionStatus.NOT_FOUND,
+            f'no contrast in the image (grey levels {lo:.0f}..{hi:.0f}): '
+            'black, saturated or blank frame',
+        )
+    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hierarchy is None:
+        return Detection(DetectionStatus.NOT_FOUND, 'no bright region in the image')
+    h, w = img.shape
+    min_area = math.pi * cfg.min_semi_minor**2
+    accepted: list[tuple[NDArray[np.int32], Ellipse]] = []
+    reasons: list[str] = []
+    candidates = 0
+    for contour, hier in zip(contours, hierarchy[0], strict=True):
+        if hier[3] != -1:
+            continue  # a hole, not the outer boundary of a bright blob
+        area = cv2.contourArea(contour)
+        if area < min_area:
+            continue  # speck of noise
+        candidates += 1
+        pts = contour.reshape(-1, 2)
+        m = cfg.border_margin
+        if (
+            pts[:, 0].min() < m
+            or pts[:, 1].min() < m
+            or pts[:, 0].max() >= w - m
+            or pts[:, 1].max() >= h - m
+        ):
+            reasons.append(
+                'a bright region touches the image border (marker partly out of '
+                'view, or background)'
+            )
+            continue
+        coarse = _coarse(contour)
+        if coarse is None:
+            reasons.append('a bright region has no ellipse fit')
+            continue
+        a, b = coarse.semi_axes
+        if a > cfg.max_semi_major or b < cfg.min_semi_minor:
+            reasons.append(
+                f'wrong size: semi-axes {a:.0f} x {b:.0f} px outside '
+                f'{cfg.min_semi_minor:.0f}..{cfg.max_semi_major:.0f} px'
+            )
+            continue
+        if b / a < cfg.min_axis_ratio:
+            reasons.append(f'seen too obliquely: axis ratio {b / a:.2f} < {cfg.min_axis_ratio}')
+            continue
+        fill = area / coarse.area
+        if abs(fill - 1.0) > cfg.max_fill_error:
+            reasons.append(f'not an ellipse: blob fills {fill:.2f} of its ellipse')
+            continue
+        rms = float(np.sqrt(np.mean(sampson_distances(coarse.conic(), pts) ** 2)))
+        if rms > cfg.max_coarse_residual:
+            reasons.append(f'not an ellipse: contour residual {rms:.2f} px')
+            continue
+        accepted.append((contour, coarse))
+
+    if len(accepted) > 1:
+        centres = ', '.join(f'({c.center[0]:.0f}, {c.center[1]:.0f})' for _, c in accepted)
+        return Detection(
+            DetectionStatus.REJECTED,
+            f'{len(accepted)} markers in view at {centres}; expected one',
+            candidates=candidates,
+        )
+    if not accepted:
+        if reasons:
+            return Detection(DetectionStatus.REJECTED, reasons[0], candidates=candidates)
+        return Detection(
+            DetectionStatus.NOT_FOUND, 'no marker-sized bright region', candidates=candidates
+        )
+    contour, coarse = accepted[0]
+    boundary = contour.reshape(-1, 2).astype(np.float64)
+    edges = subpixel_edges(img, boundary, coarse, cfg) if cfg.subpixel else boundary
+    if len(edges) < max(12, len(boundary) // 2):
+        return Detection(
+            DetectionStatus.REJECTED,
+            f'weak edges: only {len(edges)} of {len(boundary)} boundary points '
+            'have enough contrast',
+            candidates=candidates,
+        )
+    try:
+        ellipse = fit(edges)
+    except EllipseFitError as exc:
+        return Detection(
+            DetectionStatus.REJECTED, f'ellipse fit failed: {exc}', candidates=candidates
+        )
+    return Detection(DetectionStatus.OK, '', ellipse, edges, candidates)
+
+
+def detect_marker(image: ArrayLike) -> Ellipse | None:
+    """The marker's boundary ellipse in an 8-bit grey image, or None if there is no one marker.
+
+    Use :func:`detect_marker_detailed` for the reason.
+    """
+    det = detect_marker_detailed(image)
+    return det.ellipse if det.status is DetectionStatus.OK else None

@@ -94,7 +94,7 @@ def circle_poses(
     if not (lam[1] > 0 and lam[2] > 0 and lam[0] < 0):
         raise CirclePoseError('the ellipse does not back-project to a real elliptic cone')
     l3, l2, l1 = lam  # eigh sorts ascending: l3 < 0 < l2 <= l1
-    e3, e2, e1 = V[:, 0], V[:, 1], V[:, 2]
+    e3, e1 = V[:, 0], V[:, 2]  # e2 (the l2 axis) lies in both circle planes
     if e3[2] < 0:
         e3 = -e3  # the cone axis points into the scene
     denom = l1 - l3

@@ -1,0 +1,112 @@
+"""From an image to the marker pose in the camera frame: detect, undistort, fit, solve, choose.
+
+This is the one place the imaging steps are chained, used by the imager node, the sensor-model
+experiment and the benchmarks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_imaging.camera_model import CameraModel
+from activesurv_imaging.circle_pose import CirclePose, choose_pose, circle_poses
+from activesurv_imaging.detect import (
+    DetectionStatus,
+    DetectorConfig,
+    Fitter,
+    detect_marker_detailed,
+)
+from activesurv_imaging.ellipse import Ellipse, fit_ellipse
+from activesurv_imaging.errors import CirclePoseError, EllipseFitError
+
+Array = NDArray[np.float64]
+
+
+class MeasurementStatus(Enum):
+    """Mirrors the status constants of ``activesurv_interfaces/MarkerObservation``."""
+
+    OK = 0
+    NOT_FOUND = 1
+    REJECTED = 2
+    POSE_FAILED = 5
+
+
+@dataclass(frozen=True)
+class MarkerMeasurement:
+    """One camera's measurement of the marker.
+
+    Attributes:
+        status: OK or why not.
+        reason: human-readable cause when not OK.
+        ellipse: the fitted ellipse (undistorted pixels) when one was found.
+        poses: both circle poses (camera optical frame) when solved.
+        chosen: index of the pose chosen with the prior normal.
+        margin: radians by which the chosen normal is closer to the prior than the other.
+    """
+
+    status: MeasurementStatus
+    reason: str = ''
+    ellipse: Ellipse | None = None
+    poses: tuple[CirclePose, CirclePose] | None = None
+    chosen: int = 0
+    margin: float = 0.0
+
+    @property
+    def pose(self) -> CirclePose | None:
+        return None if self.poses is None else self.poses[self.chosen]
+
+
+def measure_marker(
+    image: ArrayLike,
+    camera: CameraModel,
+    radius: float,
+    prior_normal: ArrayLike | None = None,
+    fitter: Fitter | None = None,
+    config: DetectorConfig | None = None,
+) -> MarkerMeasurement:
+    """Measure the marker pose in one image.
+
+    Args:
+        image: 8-bit grey image from ``camera``.
+        camera: its intrinsics (lens distortion is removed from the edge points before the fit).
+        radius: marker radius, metres.
+        prior_normal: expected marker normal in the camera frame (from the predicted pose),
+            used to choose between the two solutions; ``None`` picks the normal that faces
+            the camera more directly.
+        fitter: ellipse fitter (default: the weighted fit of eq. 3-4).
+        config: detector limits.
+
+    Raises:
+        ImagingError: if ``image`` is not an 8-bit image.
+    """
+    fit: Fitter = fit_ellipse if fitter is None else fitter
+    det = detect_marker_detailed(image, config, fit)
+    if det.status is not DetectionStatus.OK or det.ellipse is None:
+        status = (
+            MeasurementStatus.NOT_FOUND
+            if det.status is DetectionStatus.NOT_FOUND
+            else MeasurementStatus.REJECTED
+        )
+        return MarkerMeasurement(status, det.reason)
+    ellipse = det.ellipse
+    if camera.has_distortion:
+        try:
+            ellipse = fit(camera.undistort_pixels(det.edge_points))
+        except EllipseFitError as exc:
+            return MarkerMeasurement(MeasurementStatus.REJECTED, f'undistorted fit failed: {exc}')
+    try:
+        poses = circle_poses(ellipse, camera.K, radius)
+    except CirclePoseError as exc:
+        return MarkerMeasurement(MeasurementStatus.POSE_FAILED, str(exc), ellipse)
+    if prior_normal is None:
+        # Without a prior, prefer the pose seen more frontally (the smaller bearing).
+        views = [float(p.normal @ (-p.center / np.linalg.norm(p.center))) for p in poses]
+        chosen = int(np.argmax(views))
+        margin = 0.0
+    else:
+        chosen, margin = choose_pose(poses, prior_normal)
+    return MarkerMeasurement(MeasurementStatus.OK, '', ellipse, poses, chosen, margin)

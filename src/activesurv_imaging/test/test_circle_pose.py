@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from activesurv_imaging.camera_model import dynamic_camera
-from activesurv_imaging.circle_pose import circle_poses, choose_pose
+from activesurv_imaging.circle_pose import choose_pose, circle_poses
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse
 from activesurv_imaging.errors import CirclePoseError
 from activesurv_imaging.geometry import angle_between, rotation_between

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from activesurv_imaging.camera_model import dynamic_camera
-from activesurv_imaging.circle_pose import circle_poses, choose_pose
+from activesurv_imaging.circle_pose import choose_pose, circle_poses
 from activesurv_imaging.detect import (
     DetectionStatus,
     detect_marker,

@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any
 
 import cv2
 import numpy as np
@@ -103,7 +104,7 @@ def as_gray8(image: ArrayLike) -> NDArray[np.uint8]:
     return np.ascontiguousarray(img)
 
 
-def _coarse(contour: NDArray[np.int32]) -> Ellipse | None:
+def _coarse(contour: NDArray[Any]) -> Ellipse | None:
     if len(contour) < 5:
         return None
     (cx, cy), (w, h), ang = cv2.fitEllipse(contour)
@@ -187,7 +188,7 @@ def detect_marker_detailed(
         return Detection(DetectionStatus.NOT_FOUND, 'no bright region in the image')
     h, w = img.shape
     min_area = math.pi * cfg.min_semi_minor**2
-    accepted: list[tuple[NDArray[np.int32], Ellipse]] = []
+    accepted: list[tuple[NDArray[Any], Ellipse]] = []
     reasons: list[str] = []
     candidates = 0
     for contour, hier in zip(contours, hierarchy[0], strict=True):

@@ -221,7 +221,7 @@ def render(
     pixels = np.column_stack([uu.ravel(), vv.ravel()])
     dirs = camera.rays(pixels) @ R.T
     level, label = _shade(scene, origin, dirs)
-    img = level.reshape(h, w)
+    img: Array = level.reshape(h, w)
     lab = label.reshape(h, w)
 
     # Edge pixels: any 8-neighbour with another label. Re-render them with s x s rays.
@@ -247,11 +247,11 @@ def render(
     if gx or gy:
         img = img + gx * (uu / w - 0.5) + gy * (vv / h - 0.5)
     if noise.blur_sigma > 0.0:
-        img = cv2.GaussianBlur(img, (0, 0), noise.blur_sigma)
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
     rng = np.random.default_rng() if rng is None else rng
     if noise.electrons_per_level > 0.0:
         electrons = np.clip(img, 0.0, None) * noise.electrons_per_level
-        img = rng.poisson(electrons).astype(np.float64) / noise.electrons_per_level
+        img = np.asarray(rng.poisson(electrons), dtype=np.float64) / noise.electrons_per_level
     if noise.read_noise > 0.0:
         img = img + rng.normal(0.0, noise.read_noise, img.shape)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)

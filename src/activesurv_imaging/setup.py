@@ -8,7 +8,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['py.typed']},
+    package_data={package_name: ['py.typed', 'data/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -24,6 +24,11 @@ setup(
     ),
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'activesurv_sensor_model = activesurv_imaging.sensor_model_experiment:main',
+            'activesurv_calibrate = activesurv_imaging.calibrate_cli:main',
+            'sim_camera = activesurv_imaging.sim_camera_node:main',
+            'imager = activesurv_imaging.imager_node:main',
+        ],
     },
 )

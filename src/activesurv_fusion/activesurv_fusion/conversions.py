@@ -3,23 +3,23 @@
 from __future__ import annotations
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from activesurv_fusion.collector import Answer, DemandResult, DemandStatus, Outcome
 from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
+
+__all__ = [
+    'observation_to_answer',
+    'request_fields',
+    'result_to_estimate',
+    'result_to_pose',
+    'sec_to_time',
+    'time_to_sec',
+]
+from activesurv_imaging.conversions import sec_to_time, time_to_sec
 from activesurv_imaging.geometry import normal_to_rotation_covariance, quaternion_from_normal
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
-
-
-def time_to_sec(stamp: Time) -> float:
-    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
-
-
-def sec_to_time(t: float) -> Time:
-    sec = int(np.floor(t))
-    return Time(sec=sec, nanosec=min(round((t - sec) * 1e9), 999_999_999))
 
 
 def request_fields(

@@ -171,7 +171,7 @@ class CameraModel:
         path.write_text(yaml.safe_dump(self.to_dict(), sort_keys=False))
 
     @staticmethod
-    def load(path: Path) -> CameraModel:
+    def load(path: Path | str) -> CameraModel:
         try:
             data = yaml.safe_load(Path(path).read_text())
         except (OSError, yaml.YAMLError) as exc:

@@ -1,0 +1,123 @@
+"""One camera's answer to a capture request, in the world frame (the imager node's core).
+
+Chains :func:`activesurv_imaging.marker_pose.measure_marker`, the camera pose from the stage
+joint states, and the sensor model's covariance at the measured distance and bearing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_imaging.camera_model import CameraModel
+from activesurv_imaging.ellipse import Ellipse
+from activesurv_imaging.errors import ImagingError
+from activesurv_imaging.geometry import Transform, unit
+from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
+from activesurv_imaging.sensor_model import SensorModel
+
+Array = NDArray[np.float64]
+
+
+class ObservationStatus(Enum):
+    """The status constants of ``activesurv_interfaces/MarkerObservation``."""
+
+    OK = 0
+    NOT_FOUND = 1
+    REJECTED = 2
+    NO_IMAGE = 3
+    NO_CAMERA_POSE = 4
+    POSE_FAILED = 5
+
+
+@dataclass(frozen=True)
+class Observation:
+    camera_id: str
+    demand_index: int
+    stamp: float
+    status: ObservationStatus
+    reason: str = ''
+    position: Array | None = None
+    normal: Array | None = None
+    covariance: Array | None = None
+    ellipse: Ellipse | None = None
+    chosen: int = 0
+    margin: float = 0.0
+    distance: float = math.nan
+    bearing: float = math.nan
+    camera_pose: Transform | None = None
+
+
+def failed(
+    camera_id: str,
+    demand_index: int,
+    stamp: float,
+    status: ObservationStatus,
+    reason: str,
+    camera_pose: Transform | None = None,
+) -> Observation:
+    return Observation(camera_id, demand_index, stamp, status, reason, camera_pose=camera_pose)
+
+
+def observe_marker(
+    image: ArrayLike,
+    camera: CameraModel,
+    T_world_camera: Transform,
+    radius: float,
+    model: SensorModel,
+    camera_id: str,
+    demand_index: int,
+    stamp: float,
+    prior_normal_world: ArrayLike | None = None,
+) -> Observation:
+    """Measure the marker in ``image`` and express it in the world frame with its covariance."""
+    prior = None
+    if prior_normal_world is not None:
+        try:
+            prior = T_world_camera.inverse().rotate(unit(prior_normal_world, 'prior normal'))
+        except ImagingError:
+            prior = None  # a zero or NaN prior: fall back to the frontal choice
+    try:
+        m = measure_marker(image, camera, radius, prior)
+    except ImagingError as exc:
+        return failed(
+            camera_id,
+            demand_index,
+            stamp,
+            ObservationStatus.REJECTED,
+            f'bad image: {exc}',
+            T_world_camera,
+        )
+    if m.status is not MeasurementStatus.OK or m.pose is None:
+        return Observation(
+            camera_id,
+            demand_index,
+            stamp,
+            ObservationStatus(m.status.value),
+            m.reason,
+            ellipse=m.ellipse,
+            camera_pose=T_world_camera,
+        )
+    c, n = m.pose.center, m.pose.normal
+    d = float(np.linalg.norm(c))
+    bearing = math.acos(float(np.clip(n @ (-c / d), -1.0, 1.0)))
+    return Observation(
+        camera_id,
+        demand_index,
+        stamp,
+        ObservationStatus.OK,
+        '',
+        position=T_world_camera.apply(c),
+        normal=T_world_camera.rotate(n),
+        covariance=model.world_covariance(d, bearing, T_world_camera.R),
+        ellipse=m.ellipse,
+        chosen=m.chosen,
+        margin=m.margin,
+        distance=d,
+        bearing=bearing,
+        camera_pose=T_world_camera,
+    )

@@ -1,0 +1,208 @@
+"""The ``sim_camera`` node: a simulated camera that renders real pixels of the object.
+
+Subscribes:
+    object_state (activesurv_interfaces/ObjectState): the object's ground truth (xy table).
+    <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
+    capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
+        the demand instant (like a hardware trigger armed ahead of time).
+Publishes:
+    <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
+Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+from activesurv_imaging import qos, topics
+from activesurv_imaging.camera_model import CameraModel, dynamic_camera, overhead_camera
+from activesurv_imaging.conversions import (
+    MOUNT_PARAMETERS,
+    camera_info_from_model,
+    declare_mount_parameters,
+    gray_to_image,
+    joint_vector,
+    mount_from_parameters,
+    object_state_vector,
+    sec_to_time,
+    time_to_sec,
+)
+from activesurv_imaging.errors import ImagingError
+from activesurv_imaging.render import SensorNoise
+from activesurv_imaging.sim_camera import ObjectGeometry, SimulatedCamera
+from activesurv_interfaces.msg import CaptureRequest, ObjectState
+
+POSITIVE = (
+    'frame_rate',
+    'trigger_delay',
+    'state_hold',
+    'side_marker_radius',
+    'top_marker_radius',
+    'plate_half_size',
+    'blur_sigma',
+    'electrons_per_level',
+    'read_noise',
+)
+
+
+class SimCameraNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('sim_camera', **kwargs)
+        d = ParameterDescriptor
+        self.declare_parameter('camera_id', 'cam1', d(description='camera id (topic prefix)'))
+        self.declare_parameter(
+            'camera_type', 'dynamic', d(description='dynamic (25 mm) or overhead (12 mm) defaults')
+        )
+        self.declare_parameter('intrinsics_file', '', d(description='camera YAML; overrides'))
+        self.declare_parameter('frame_rate', 0.0, d(description='free-running Hz; 0: triggered'))
+        self.declare_parameter(
+            'trigger_delay', 0.05, d(description='s after a demand instant before rendering it')
+        )
+        self.declare_parameter('state_hold', 0.2, d(description='s a state may be extrapolated'))
+        self.declare_parameter('seed', 0, d(description='image noise seed'))
+        self.declare_parameter('side_marker_radius', 0.0125, d(description='m'))
+        self.declare_parameter('top_marker_radius', 0.0125, d(description='m'))
+        self.declare_parameter('plate_half_size', 0.03, d(description='m'))
+        self.declare_parameter('blur_sigma', 0.8, d(description='lens blur, px'))
+        self.declare_parameter('electrons_per_level', 40.0, d(description='shot noise scale'))
+        self.declare_parameter('read_noise', 1.0, d(description='grey levels'))
+        self.declare_parameter('supersample', 8, d(description='edge supersampling'))
+        declare_mount_parameters(self)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        p = {name: self.get_parameter(name).value for name in MOUNT_PARAMETERS}
+        self.camera_id = str(self.get_parameter('camera_id').value)
+        intrinsics = str(self.get_parameter('intrinsics_file').value)
+        if intrinsics:
+            model = CameraModel.load(intrinsics)
+        elif self.get_parameter('camera_type').value == 'overhead':
+            model = overhead_camera(self.camera_id)
+        else:
+            model = dynamic_camera(self.camera_id)
+        g = self.get_parameter
+        self.sim = SimulatedCamera(
+            model,
+            mount_from_parameters(self.camera_id, p),
+            ObjectGeometry(
+                float(g('side_marker_radius').value),
+                float(g('top_marker_radius').value),
+                float(g('plate_half_size').value),
+            ),
+            SensorNoise(
+                float(g('blur_sigma').value),
+                float(g('electrons_per_level').value),
+                float(g('read_noise').value),
+                int(g('supersample').value),
+            ),
+            int(g('seed').value),
+        )
+        self.frame_id = f'{self.camera_id}_optical'
+        self._image_pub = self.create_publisher(
+            Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
+        )
+        self._info_pub = self.create_publisher(
+            CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
+        )
+        self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
+        if self.sim.joint_names:
+            self.create_subscription(
+                JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
+            )
+        self.create_subscription(
+            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+        )
+        self._pending: set[float] = set()
+        self.create_timer(0.01, self._on_tick)
+        rate = float(g('frame_rate').value)
+        self._last_streamed = -math.inf
+        if rate > 0.0:
+            self.create_timer(1.0 / rate, self._on_stream)
+        self.frames_published = 0
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        for p in params:
+            if p.name in POSITIVE and (
+                not isinstance(p.value, float) or not math.isfinite(p.value) or p.value < 0.0
+            ):
+                return SetParametersResult(
+                    successful=False, reason=f'{p.name} must be a finite float >= 0'
+                )
+            if p.name == 'supersample' and not (isinstance(p.value, int) and 1 <= p.value <= 16):
+                return SetParametersResult(successful=False, reason='supersample must be 1..16')
+            if p.name == 'camera_type' and p.value not in ('dynamic', 'overhead'):
+                return SetParametersResult(
+                    successful=False, reason='camera_type must be dynamic or overhead'
+                )
+        return SetParametersResult(successful=True)
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_object(self, msg: ObjectState) -> None:
+        if not self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg)):
+            self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
+
+    def _on_joints(self, msg: JointState) -> None:
+        q = joint_vector(msg, self.sim.joint_names)
+        if q is None or not self.sim.joints.add(time_to_sec(msg.header.stamp), q):
+            self.get_logger().warning(
+                f'ignored joint state without finite {self.sim.joint_names}',
+                throttle_duration_sec=5,
+            )
+
+    def _on_request(self, msg: CaptureRequest) -> None:
+        if self.camera_id in msg.camera_ids:
+            self._pending.add(time_to_sec(msg.demand_instant))
+
+    def _publish(self, t: float) -> None:
+        hold = float(self.get_parameter('state_hold').value)
+        try:
+            gray = self.sim.render_at(t, hold)
+        except ImagingError as exc:
+            self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
+            return
+        stamp = sec_to_time(t)
+        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+        self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
+        self.frames_published += 1
+
+    def _on_tick(self) -> None:
+        due = [
+            t
+            for t in self._pending
+            if t <= self._now() - float(self.get_parameter('trigger_delay').value)
+        ]
+        for t in sorted(due):
+            self._pending.discard(t)
+            self._publish(t)
+
+    def _on_stream(self) -> None:
+        t = self.sim.objects.latest_time
+        if t is not None and t > self._last_streamed:
+            self._last_streamed = t
+            self._publish(t)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    node = SimCameraNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""Time-stamped samples with interpolation (object states, joint states, frames)."""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from typing import Generic, TypeVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+T = TypeVar('T')
+
+
+class TimeSeries:
+    """A bounded history of vector samples; linear interpolation between them.
+
+    Samples may arrive slightly out of order (they are kept sorted); non-finite samples are
+    refused.
+    """
+
+    def __init__(self, dim: int, capacity: int = 2000) -> None:
+        self.dim = dim
+        self.capacity = capacity
+        self._t: list[float] = []
+        self._v: list[NDArray[np.float64]] = []
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    @property
+    def latest_time(self) -> float | None:
+        return self._t[-1] if self._t else None
+
+    def add(self, t: float, value: ArrayLike) -> bool:
+        """Add a sample; returns False (and ignores it) if it is not finite or wrong-sized."""
+        v = np.asarray(value, dtype=np.float64).reshape(-1)
+        if v.shape != (self.dim,) or not math.isfinite(t) or not np.all(np.isfinite(v)):
+            return False
+        i = bisect.bisect_right(self._t, t)
+        if i > 0 and self._t[i - 1] == t:
+            self._v[i - 1] = v
+            return True
+        self._t.insert(i, t)
+        self._v.insert(i, v)
+        if len(self._t) > self.capacity:
+            del self._t[0]
+            del self._v[0]
+        return True
+
+    def at(self, t: float, hold: float = 0.0) -> NDArray[np.float64] | None:
+        """The value at ``t``: interpolated between the samples around it, or the nearest sample
+        if ``t`` is outside the history by at most ``hold`` seconds; otherwise None."""
+        if not self._t or not math.isfinite(t):
+            return None
+        i = bisect.bisect_left(self._t, t)
+        if i < len(self._t) and self._t[i] == t:
+            return self._v[i].copy()
+        if 0 < i < len(self._t):
+            t0, t1 = self._t[i - 1], self._t[i]
+            w = (t - t0) / (t1 - t0)
+            return np.asarray((1.0 - w) * self._v[i - 1] + w * self._v[i], dtype=np.float64)
+        j = 0 if i == 0 else len(self._t) - 1
+        return self._v[j].copy() if abs(self._t[j] - t) <= hold else None
+
+
+class FrameBuffer(Generic[T]):
+    """The last few frames (any payload) by stamp; look up the one closest to a time."""
+
+    def __init__(self, capacity: int = 30) -> None:
+        self.capacity = capacity
+        self._t: list[float] = []
+        self._f: list[T] = []
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def add(self, t: float, frame: T) -> None:
+        i = bisect.bisect_right(self._t, t)
+        self._t.insert(i, t)
+        self._f.insert(i, frame)
+        if len(self._t) > self.capacity:
+            del self._t[0]
+            del self._f[0]
+
+    def closest(self, t: float, tolerance: float) -> tuple[float, T] | None:
+        if not self._t:
+            return None
+        i = bisect.bisect_left(self._t, t)
+        best = min(
+            (j for j in (i - 1, i) if 0 <= j < len(self._t)), key=lambda j: abs(self._t[j] - t)
+        )
+        return (self._t[best], self._f[best]) if abs(self._t[best] - t) <= tolerance else None
+
+    def stamps(self) -> Sequence[float]:
+        return tuple(self._t)

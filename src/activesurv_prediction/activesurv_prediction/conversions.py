@@ -1,0 +1,31 @@
+"""Conversions between the prediction cores and messages."""
+
+from __future__ import annotations
+
+from activesurv_imaging.conversions import sec_to_time
+from activesurv_imaging.geometry import quaternion_from_normal
+from activesurv_interfaces.msg import DemandHorizon, DemandPoint
+from activesurv_prediction.demands import DemandPrediction
+from activesurv_prediction.tracker import TrackState
+
+
+def horizon_to_msg(
+    predictions: list[DemandPrediction], state: TrackState, stamp: float, frame_id: str
+) -> DemandHorizon:
+    msg = DemandHorizon()
+    msg.header.stamp = sec_to_time(stamp)
+    msg.header.frame_id = frame_id
+    msg.track_state = int(state.value)
+    for p in predictions:
+        d = DemandPoint(index=int(p.index))
+        d.demand_instant = sec_to_time(p.instant)
+        pose = d.pose.pose
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in p.position)
+        q = quaternion_from_normal(p.normal)
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (
+            float(v) for v in q
+        )
+        d.pose.covariance = [float(v) for v in p.covariance.reshape(-1)]
+        d.normal.x, d.normal.y, d.normal.z = (float(v) for v in p.normal)
+        msg.demands.append(d)
+    return msg

@@ -1,0 +1,114 @@
+"""Track management around the Kalman predictor: start, confirmation, loss (pure core).
+
+* A track starts at the first fix inside the workspace (fixes outside are ignored: the object
+  has not entered yet).
+* It is confirmed after ``confirm_fixes`` accepted fixes; demand predictions are only
+  trustworthy from then on.
+* It is lost when the object leaves the workspace (by ``exit_margin``) or has not been seen for
+  ``lost_timeout`` seconds; a fix inside the workspace starts a new track.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from activesurv_prediction.errors import PredictionError
+from activesurv_prediction.predictor import TargetPredictor, UpdateResult
+
+
+class TrackState(Enum):
+    """Mirrors the TRACK_* constants of ``activesurv_interfaces/DemandHorizon``."""
+
+    NONE = 0
+    TENTATIVE = 1
+    CONFIRMED = 2
+    LOST = 3
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Axis-aligned region of the table the object moves in (m)."""
+
+    x_min: float = 0.0
+    x_max: float = 0.5
+    y_min: float = 0.0
+    y_max: float = 0.2
+
+    def __post_init__(self) -> None:
+        vals = (self.x_min, self.x_max, self.y_min, self.y_max)
+        if (
+            not all(math.isfinite(v) for v in vals)
+            or self.x_min >= self.x_max
+            or (self.y_min >= self.y_max)
+        ):
+            raise PredictionError(f'invalid workspace bounds {vals}')
+
+    def contains(self, xy: ArrayLike, margin: float = 0.0) -> bool:
+        x, y = np.asarray(xy, dtype=np.float64).reshape(2)
+        return bool(
+            self.x_min - margin <= x <= self.x_max + margin
+            and self.y_min - margin <= y <= self.y_max + margin
+        )
+
+
+class Tracker:
+    """Track life cycle of the object seen by the overhead camera."""
+
+    def __init__(
+        self,
+        predictor: TargetPredictor | None = None,
+        workspace: Workspace | None = None,
+        confirm_fixes: int = 10,
+        lost_timeout: float = 1.0,
+        exit_margin: float = 0.01,
+    ) -> None:
+        if confirm_fixes < 1 or not (math.isfinite(lost_timeout) and lost_timeout > 0):
+            raise PredictionError('confirm_fixes must be >= 1 and lost_timeout > 0')
+        self.predictor = predictor or TargetPredictor()
+        self.workspace = workspace or Workspace()
+        self.confirm_fixes = confirm_fixes
+        self.lost_timeout = lost_timeout
+        self.exit_margin = exit_margin
+        self.state = TrackState.NONE
+        self.last_seen: float | None = None
+        self.tracks_started = 0
+
+    def update(self, t: float, xy: ArrayLike) -> UpdateResult | None:
+        """Feed one fix. Returns the filter's verdict, or None if the fix was not used."""
+        z = np.asarray(xy, dtype=np.float64).reshape(-1)
+        if z.shape != (2,) or not np.all(np.isfinite(z)) or not math.isfinite(t):
+            raise PredictionError(f'fix must be finite: t={t}, xy={xy!r}')
+        if self.state in (TrackState.NONE, TrackState.LOST):
+            if not self.workspace.contains(z):
+                return None
+            self.predictor.reset()
+            self.state = TrackState.TENTATIVE
+            self.tracks_started += 1
+        elif not self.workspace.contains(z, self.exit_margin):
+            self.lose()
+            return None
+        if self.predictor.last_time is not None and t < self.predictor.last_time:
+            return None  # a stale frame: drop it rather than break the time order
+        result = self.predictor.update(t, z)
+        if result.accepted:
+            self.last_seen = t
+        if self.state is TrackState.TENTATIVE and self.predictor.updates >= self.confirm_fixes:
+            self.state = TrackState.CONFIRMED
+        return result
+
+    def check_timeout(self, now: float) -> bool:
+        """Lose the track if the object has not been seen for ``lost_timeout``; True if lost."""
+        active = self.state in (TrackState.TENTATIVE, TrackState.CONFIRMED)
+        if active and self.last_seen is not None and now - self.last_seen > self.lost_timeout:
+            self.lose()
+            return True
+        return False
+
+    def lose(self) -> None:
+        self.state = TrackState.LOST
+        self.predictor.reset()

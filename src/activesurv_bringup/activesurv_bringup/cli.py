@@ -17,11 +17,19 @@ def _build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser('demo', help='run the main job: the node graph and its summary')
     demo.add_argument('--out', type=Path, default=Path('runs/demo'), help='output directory')
     demo.add_argument('--seed', type=int, default=1, help='random seed')
+    stages = sub.add_parser('stages', help='commissioning of stage controllers (probe, move)')
+    from activesurv_stages.cli import add_arguments
+
+    add_arguments(stages.add_subparsers(dest='stages_command', required=True))
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _build_parser().parse_args(argv)
+    if args.command == 'stages':
+        from activesurv_stages.cli import run
+
+        return run(args)
     try:
         if args.command == 'demo':
             from activesurv_bringup.demo import print_summary, run_demo

@@ -1,0 +1,1 @@
+"""Wire formats of the supported motion controllers (pure parsing and formatting)."""

@@ -5,8 +5,8 @@ units (mm or degrees; speeds in units/s). Conversion to SI and the soft-limit ch
 up (:mod:`activesurv_stages.bridge`), before a driver is asked to write anything.
 
 Errors: a missing or unplugged port, or silence past the timeout, raise
-:class:`CommunicationError`; a refusal raises :class:`ControllerRejected`. A line of garbage is
-skipped and counted: the request still succeeds if its reply follows.
+:class:`CommunicationError`; a refusal raises :class:`ControllerRejectedError`. A line of
+garbage is skipped and counted: the request still succeeds if its reply follows.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import serial
 
 from activesurv_stages.errors import (
     CommunicationError,
-    ControllerRejected,
+    ControllerRejectedError,
     ProtocolError,
     StageError,
 )
@@ -108,7 +108,7 @@ class SerialLine:
                 return None
             try:
                 self.ser.timeout = min(remaining, 0.05)
-                chunk = self.ser.read_until(b'\n')
+                chunk: bytes = self.ser.read_until(b'\n')
             except (serial.SerialException, OSError) as exc:
                 raise CommunicationError(f'read from {self.port} failed: {exc}') from exc
             buf += chunk
@@ -199,7 +199,7 @@ class ZaberDriver:
     def _checked(self, device: int, command: str) -> zaber.Reply:
         r = self.request(device, command)
         if not r.ok:
-            raise ControllerRejected(
+            raise ControllerRejectedError(
                 f'Zaber device {device} rejected {command!r}: {r.data or "no reason"} '
                 f'(warning {r.warning})'
             )
@@ -303,12 +303,12 @@ class GrblDriver:
             if kind == 'ok':
                 return
             if kind == 'error':
-                raise ControllerRejected(
+                raise ControllerRejectedError(
                     f'GRBL rejected {text.strip()!r}: {grbl.error_text(payload)}'
                 )
             if kind == 'alarm':
                 self.alarms.append(grbl.alarm_text(payload))
-                raise ControllerRejected(
+                raise ControllerRejectedError(
                     f'GRBL alarm during {text.strip()!r}: {grbl.alarm_text(payload)}'
                 )
             if kind == 'other':

@@ -19,7 +19,7 @@ class ProtocolError(StageError):
     """A controller sent something that is not a valid reply (garbage, wrong device)."""
 
 
-class ControllerRejected(StageError):
+class ControllerRejectedError(StageError):
     """The controller understood the command and refused it (Zaber RJ, GRBL error:N, alarm)."""
 
 

@@ -110,7 +110,7 @@ class Move:
         return self.t0 + self.duration
 
     def state(self, t: float) -> tuple[float, float]:
-        """(position, velocity) at time ``t`` (before t0: the start; after: at rest at the goal)."""
+        """(position, velocity) at ``t`` (before t0: the start; after: at rest at the goal)."""
         if t <= self.t0:
             return self.p0, self.v0
         p, v, tau = self.p0, self.v0, t - self.t0

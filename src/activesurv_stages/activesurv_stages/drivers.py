@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import termios
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -79,7 +80,7 @@ class SerialLine:
             raise CommunicationError(f'serial port {port} does not exist (unplugged?)')
         try:
             self.ser = serial.Serial(port, baud, timeout=0.05, write_timeout=timeout)
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, termios.error) as exc:
             raise CommunicationError(f'cannot open {port}: {exc}') from exc
         self.port = port
         self.timeout = timeout
@@ -89,14 +90,15 @@ class SerialLine:
             self.ser.close()
 
     def write(self, data: bytes) -> None:
+        # No flush(): tcdrain() can block forever on a vanished device; the write timeout
+        # bounds the write itself.
         try:
             self.ser.write(data)
-            self.ser.flush()
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, termios.error) as exc:
             raise CommunicationError(f'write to {self.port} failed: {exc}') from exc
 
     def flush_input(self) -> None:
-        with contextlib.suppress(serial.SerialException, OSError):
+        with contextlib.suppress(serial.SerialException, OSError, termios.error):
             self.ser.reset_input_buffer()
 
     def readline(self, deadline: float) -> str | None:
@@ -109,7 +111,7 @@ class SerialLine:
             try:
                 self.ser.timeout = min(remaining, 0.05)
                 chunk: bytes = self.ser.read_until(b'\n')
-            except (serial.SerialException, OSError) as exc:
+            except (serial.SerialException, OSError, termios.error) as exc:
                 raise CommunicationError(f'read from {self.port} failed: {exc}') from exc
             buf += chunk
             if buf.endswith(b'\n'):

@@ -1,0 +1,281 @@
+"""The serial bridge's worker: one thread owns the controller, the node only talks to it.
+
+* Goals are checked against the soft limits when they are submitted, and again in raw units
+  before anything is written to the port. A goal outside the limits is refused with a reason;
+  nothing is sent.
+* The worker polls positions at ``poll_rate`` and keeps the latest snapshot (SI units).
+* Recovery: a communication error (unplugged port, silence, a reset mid-reply) closes the port
+  and reconnects every ``reconnect_period`` until it works. An axis that reports no reference
+  position (first connection, or after a controller reset) is homed, and the last goal is sent
+  again. Garbage lines are counted and skipped by the driver.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+from activesurv_stages.config import AxisConfig
+from activesurv_stages.drivers import AxisReport, StageDriver
+from activesurv_stages.errors import (
+    CommunicationError,
+    ControllerRejectedError,
+    LimitError,
+    ProtocolError,
+    StageError,
+)
+
+
+class LinkState(Enum):
+    DISCONNECTED = 'disconnected'
+    HOMING = 'homing'
+    READY = 'ready'
+
+
+@dataclass(frozen=True)
+class Goal:
+    joint: str
+    position: float  # SI
+    velocity: float | None  # SI/s, None: the axis maximum
+    raw_position: float
+    raw_speed: float
+
+
+@dataclass
+class Snapshot:
+    """The bridge's latest view (SI). ``stamp`` is ``time.monotonic()`` of the poll."""
+
+    state: LinkState = LinkState.DISCONNECTED
+    stamp: float = 0.0
+    positions: dict[str, float] = field(default_factory=dict)
+    velocities: dict[str, float] = field(default_factory=dict)
+    statuses: dict[str, str] = field(default_factory=dict)
+    last_error: str = ''
+    counters: dict[str, int] = field(default_factory=dict)
+
+
+class BridgeWorker:
+    """Runs a :class:`StageDriver` in a thread for the given axes."""
+
+    def __init__(
+        self,
+        driver_factory: Callable[[], StageDriver],
+        axes: list[AxisConfig],
+        poll_rate: float = 20.0,
+        reconnect_period: float = 1.0,
+        home_on_connect: bool = True,
+    ) -> None:
+        if not axes:
+            raise StageError('a bridge needs at least one axis')
+        self.factory = driver_factory
+        self.axes = {a.joint: a for a in axes}
+        self.poll_period = 1.0 / poll_rate
+        self.reconnect_period = reconnect_period
+        self.home_on_connect = home_on_connect
+        self._lock = threading.Lock()
+        self._pending: dict[str, Goal] = {}
+        self._last_goal: dict[str, Goal] = {}
+        self._snap = Snapshot()
+        self._counters = {
+            'connects': 0,
+            'comm_errors': 0,
+            'rejected_goals': 0,
+            'limit_rejections': 0,
+            'homings': 0,
+            'goals_sent': 0,
+            'garbage_lines': 0,
+            'protocol_errors': 0,
+        }
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._driver: StageDriver | None = None
+        self._stop_request: set[str] = set()
+        self._garbage_base = 0  # garbage lines seen by earlier connections
+
+    # -- API for the node -------------------------------------------------------------------
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name='stage-bridge', daemon=True)
+        self._thread.start()
+
+    def shutdown(self, timeout: float = 3.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        if self._driver is not None:
+            self._driver.close()
+
+    def submit_goal(self, joint: str, position: float, velocity: float | None = None) -> Goal:
+        """Queue a goal (the newest goal per joint wins).
+
+        Raises:
+            LimitError: outside the soft limits or invalid; nothing is queued or sent.
+            StageError: for an unknown joint.
+        """
+        axis = self.axes.get(joint)
+        if axis is None:
+            raise StageError(f'unknown joint {joint!r}; this bridge drives {list(self.axes)}')
+        try:
+            raw_p, raw_v = axis.checked_goal(position, velocity)
+        except LimitError:
+            with self._lock:
+                self._counters['limit_rejections'] += 1
+            raise
+        goal = Goal(joint, position, velocity, raw_p, raw_v)
+        with self._lock:
+            self._pending[joint] = goal
+        return goal
+
+    def request_stop(self, joint: str) -> None:
+        with self._lock:
+            self._stop_request.add(joint)
+            self._pending.pop(joint, None)
+
+    def snapshot(self) -> Snapshot:
+        with self._lock:
+            s = self._snap
+            return Snapshot(
+                s.state,
+                s.stamp,
+                dict(s.positions),
+                dict(s.velocities),
+                dict(s.statuses),
+                s.last_error,
+                dict(self._counters),
+            )
+
+    # -- the thread -------------------------------------------------------------------------
+    def _set(self, **kwargs: object) -> None:
+        with self._lock:
+            for k, v in kwargs.items():
+                setattr(self._snap, k, v)
+
+    def _error(self, text: str, counter: str) -> None:
+        with self._lock:
+            self._snap.last_error = text
+            self._counters[counter] += 1
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            if self._driver is None:
+                if not self._connect():
+                    self._stop.wait(self.reconnect_period)
+                    continue
+            try:
+                self._cycle()
+            except CommunicationError as exc:
+                self._error(f'communication lost: {exc}', 'comm_errors')
+                self._drop_link()
+                self._stop.wait(self.reconnect_period)
+            except ProtocolError as exc:
+                self._error(f'protocol error: {exc}', 'protocol_errors')
+            except Exception as exc:
+                self._error(f'unexpected {type(exc).__name__}: {exc}', 'comm_errors')
+                self._drop_link()
+                self._stop.wait(self.reconnect_period)
+            self._stop.wait(self.poll_period)
+
+    def _drop_link(self) -> None:
+        if self._driver is not None:
+            self._garbage_base += self._driver.garbage_lines
+            self._driver.close()
+        self._driver = None
+        self._set(state=LinkState.DISCONNECTED)
+
+    def _connect(self) -> bool:
+        try:
+            driver = self.factory()
+            found = driver.connect()
+            missing = sorted({a.axis for a in self.axes.values()} - set(found))
+            if missing:
+                driver.close()
+                raise StageError(f'axes {missing} not found on the controller (found {found})')
+        except StageError as exc:
+            self._error(f'connect failed: {exc}', 'comm_errors')
+            return False
+        self._driver = driver
+        with self._lock:
+            self._counters['connects'] += 1
+        self._set(state=LinkState.HOMING if self.home_on_connect else LinkState.READY)
+        return True
+
+    def _reports(self) -> dict[str, AxisReport]:
+        assert self._driver is not None
+        by_axis = {r.axis: r for r in self._driver.poll()}
+        with self._lock:
+            self._counters['garbage_lines'] = self._garbage_base + self._driver.garbage_lines
+        return {j: by_axis[a.axis] for j, a in self.axes.items() if a.axis in by_axis}
+
+    def _cycle(self) -> None:
+        driver = self._driver
+        assert driver is not None
+        reports = self._reports()
+        unhomed = [j for j, r in reports.items() if r.needs_home]
+        if unhomed and self.home_on_connect:
+            self._home(unhomed)
+            reports = self._reports()
+        now = time.monotonic()
+        with self._lock:
+            prev, prev_t = dict(self._snap.positions), self._snap.stamp
+            for j, r in reports.items():
+                p = self.axes[j].to_si(r.position)
+                dt = now - prev_t
+                v = (p - prev[j]) / dt if j in prev and dt > 1e-6 else 0.0
+                self._snap.velocities[j] = v if r.status == 'busy' else 0.0
+                self._snap.positions[j] = p
+                self._snap.statuses[j] = r.status
+            self._snap.stamp = now
+            if self._snap.state is not LinkState.READY and not unhomed:
+                self._snap.state = LinkState.READY
+            stops = set(self._stop_request)
+            self._stop_request.clear()
+            goals = list(self._pending.values())
+            self._pending.clear()
+        for j in stops:
+            driver.stop(self.axes[j].axis)
+        for goal in goals:
+            self._send(goal)
+
+    def _home(self, joints: list[str]) -> None:
+        assert self._driver is not None
+        self._set(state=LinkState.HOMING)
+        for axis in sorted({self.axes[j].axis for j in joints}):
+            self._driver.home(axis)
+        with self._lock:
+            self._counters['homings'] += 1
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and not self._stop.is_set():
+            reports = self._reports()
+            if all(r.status == 'idle' and not r.needs_home for r in reports.values()):
+                break
+            self._stop.wait(self.poll_period)
+        # The controller lost its goals with its reference: send the last ones again.
+        with self._lock:
+            for j in joints:
+                if j in self._last_goal and j not in self._pending:
+                    self._pending[j] = self._last_goal[j]
+
+    def _send(self, goal: Goal) -> None:
+        assert self._driver is not None
+        axis = self.axes[goal.joint]
+        # Belt and braces: the raw goal must map back inside the soft limits.
+        si = axis.to_si(goal.raw_position)
+        if not (
+            math.isfinite(si)
+            and axis.limits.min_position - 1e-9 <= si <= axis.limits.max_position + 1e-9
+        ):
+            self._error(
+                f'{goal.joint}: refused to send a goal outside the limits', 'limit_rejections'
+            )
+            return
+        try:
+            self._driver.move(axis.axis, goal.raw_position, goal.raw_speed)
+        except ControllerRejectedError as exc:
+            self._error(f'{goal.joint}: {exc}', 'rejected_goals')
+            return
+        with self._lock:
+            self._counters['goals_sent'] += 1
+            self._last_goal[goal.joint] = goal

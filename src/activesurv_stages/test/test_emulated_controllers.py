@@ -1,0 +1,222 @@
+"""Drivers and bridge end to end through pyserial against the emulators on pseudo-terminals.
+
+Every fault kind of the emulators is injected and the bridge must recover or report, without
+ever writing a goal outside the soft limits to the port.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from activesurv_stages.bridge import BridgeWorker, LinkState, Snapshot
+from activesurv_stages.config import AxisConfig
+from activesurv_stages.drivers import GrblDriver, ZaberDriver
+from activesurv_stages.emulators import (
+    GrblAxisSpec,
+    GrblEmulator,
+    ZaberDeviceSpec,
+    ZaberEmulator,
+)
+from activesurv_stages.errors import (
+    CommunicationError,
+    ControllerRejectedError,
+    LimitError,
+    StageError,
+)
+from activesurv_stages.kinematics import AxisLimits
+
+UM = 1e-6  # the test stages: 1 microstep = 1 um, 1 urad
+
+ZABER_AXES = [
+    AxisConfig('cam1_x', '1', 'linear', UM, -0.15, AxisLimits(-0.15, 0.15, 0.1, 0.5)),
+    AxisConfig('cam1_yaw', '2', 'rotary', UM, -1.0, AxisLimits(-1.0, 1.0, 0.2, 0.8)),
+]
+GRBL_AXES = [  # GRBL machine units: mm and degrees
+    AxisConfig('cam4_x', 'X', 'linear', 1e-3, -0.15, AxisLimits(-0.15, 0.15, 0.1, 0.5)),
+    AxisConfig(
+        'cam4_yaw', 'A', 'rotary', 3.141592653589793 / 180, -1.0, AxisLimits(-1.0, 1.0, 0.2, 0.8)
+    ),
+]
+
+
+@pytest.fixture
+def zaber_emu(tmp_path: Path) -> Iterator[ZaberEmulator]:
+    emu = ZaberEmulator(
+        tmp_path / 'ttyZABER',
+        [
+            ZaberDeviceSpec(1, (0, 300_000), 300_000, 1_500_000),
+            ZaberDeviceSpec(2, (0, 2_000_000), 1_000_000, 4_000_000, name='X-RSW60A'),
+        ],
+    )
+    yield emu
+    emu.close()
+
+
+@pytest.fixture
+def grbl_emu(tmp_path: Path) -> Iterator[GrblEmulator]:
+    emu = GrblEmulator(
+        tmp_path / 'ttyGRBL',
+        [
+            GrblAxisSpec('X', 300.0, 6000.0, 500.0),
+            GrblAxisSpec('Y', 200.0, 1800.0, 100.0),
+            GrblAxisSpec('Z', 50.0, 600.0, 50.0),
+            GrblAxisSpec('A', 115.0, 12000.0, 50.0),
+        ],
+        homing_time=0.2,
+    )
+    yield emu
+    emu.close()
+
+
+def _wait(
+    worker: BridgeWorker, pred: Callable[[Snapshot], bool], timeout: float = 15.0
+) -> Snapshot:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        s = worker.snapshot()
+        if pred(s):
+            return s
+        time.sleep(0.02)
+    s = worker.snapshot()
+    raise AssertionError(f'condition not reached: {s}')
+
+
+def _at(joint: str, value: float, tol: float = 2e-6) -> Callable[[Snapshot], bool]:
+    return lambda s: (
+        s.state is LinkState.READY
+        and abs(s.positions.get(joint, 1e9) - value) < tol
+        and s.statuses.get(joint) == 'idle'
+    )
+
+
+def _raw_targets(received: list[bytes]) -> list[float]:
+    """Every absolute target actually written to the wire (Zaber move abs, GRBL jogs)."""
+    out = []
+    for line in received:
+        text = line.decode()
+        m = re.search(r'move abs (-?\d+)', text)
+        if m:
+            out.append(float(m[1]))
+        out += [float(v) for v in re.findall(r'[XYZA](-?\d+\.\d+)', text)]
+    return out
+
+
+def test_zaber_driver_direct(zaber_emu: ZaberEmulator) -> None:
+    d = ZaberDriver(str(zaber_emu.link))
+    assert d.connect() == ['1', '2']
+    reports = d.poll()
+    assert [r.needs_home for r in reports] == [True, True]
+    with pytest.raises(ControllerRejectedError, match='BADDATA'):
+        d.move('1', 1000, None)
+    d.home('1')
+    with pytest.raises(StageError, match='no Zaber device 7'):
+        d.move('7', 0, None)
+    d.close()
+    with pytest.raises(CommunicationError, match='does not exist'):
+        ZaberDriver('/dev/does-not-exist').connect()
+
+
+def test_grbl_driver_direct(grbl_emu: GrblEmulator) -> None:
+    d = GrblDriver(str(grbl_emu.link))
+    assert d.connect() == ['X', 'Y', 'Z', 'A']
+    assert d.poll()[0].status == 'fault'  # Alarm after power-up (homing enabled)
+    with pytest.raises(ControllerRejectedError, match='error:9'):
+        d.move('X', 1.0, 10.0)
+    d.home('X')
+    assert d.poll()[0].status == 'idle'
+    with pytest.raises(ControllerRejectedError, match='error:15'):
+        d.move('X', 400.0, 10.0)
+    d.close()
+
+
+@pytest.mark.parametrize('protocol', ['zaber', 'grbl'])
+def test_bridge_moves_and_recovers_from_every_fault(
+    protocol: str, zaber_emu: ZaberEmulator, grbl_emu: GrblEmulator
+) -> None:
+    emu = zaber_emu if protocol == 'zaber' else grbl_emu
+    axes = ZABER_AXES if protocol == 'zaber' else GRBL_AXES
+    driver_cls = ZaberDriver if protocol == 'zaber' else GrblDriver
+    joint = axes[0].joint
+    w = BridgeWorker(
+        lambda: driver_cls(str(emu.link), timeout=0.5), axes, poll_rate=25, reconnect_period=0.2
+    )
+    w.start()
+    try:
+        _wait(w, lambda s: s.state is LinkState.READY)
+        assert w.snapshot().counters['homings'] >= 1  # homed on first connect
+
+        w.submit_goal(joint, 0.01, 0.02)
+        _wait(w, _at(joint, 0.01))
+
+        # A goal outside the soft limits is refused before anything is written.
+        sent_before = len(emu.received)
+        with pytest.raises(LimitError, match='outside the soft limits'):
+            w.submit_goal(joint, 0.2)
+        with pytest.raises(LimitError):
+            w.submit_goal(joint, float('nan'))
+        time.sleep(0.2)
+        assert not any(b'0.2' in line or b'350000' in line for line in emu.received[sent_before:])
+
+        # Garbage on the line and dropped replies: skipped, or reconnected.
+        emu.garbage(3)
+        emu.drop_replies(1)
+        w.submit_goal(joint, -0.02)
+        s = _wait(w, _at(joint, -0.02))
+        assert s.counters['garbage_lines'] >= 1 or s.counters['comm_errors'] >= 1
+
+        # Unplugged: reported, then reconnected at the same path when it comes back.
+        emu.unplug()
+        s = _wait(w, lambda s: s.state is LinkState.DISCONNECTED, 5.0)
+        assert 'communication lost' in s.last_error or 'connect failed' in s.last_error
+        time.sleep(0.5)
+        emu.replug()
+        _wait(w, _at(joint, -0.02))
+
+        # Controller reset: the reference is lost; the bridge re-homes and resends the goal.
+        homings = w.snapshot().counters['homings']
+        emu.reset()
+        _wait(w, lambda s: s.counters['homings'] > homings and _at(joint, -0.02)(s))
+
+        # A hung controller (stall of the line): silence, reconnect, carry on.
+        emu.freeze(1.0)
+        time.sleep(1.5)
+        w.submit_goal(joint, 0.03)
+        _wait(w, _at(joint, 0.03))
+
+        # Nothing outside the soft limits ever reached the wire.
+        lo, hi = axes[0].limits.min_position, axes[0].limits.max_position
+        for raw in _raw_targets(emu.received):
+            if protocol == 'zaber' and raw > 400_000:
+                continue  # the rotary device's targets
+            si = axes[0].to_si(raw)
+            assert lo - 1e-9 <= si <= hi + 1e-9, (raw, si)
+    finally:
+        w.shutdown()
+
+
+def test_zaber_stall_is_reported_as_a_fault(zaber_emu: ZaberEmulator) -> None:
+    w = BridgeWorker(
+        lambda: ZaberDriver(str(zaber_emu.link), timeout=0.5),
+        ZABER_AXES,
+        poll_rate=25,
+        reconnect_period=0.2,
+        home_on_connect=True,
+    )
+    w.start()
+    try:
+        _wait(w, lambda s: s.state is LinkState.READY)
+        w.submit_goal('cam1_x', 0.1, 0.02)
+        _wait(w, lambda s: s.statuses.get('cam1_x') == 'busy')
+        zaber_emu.stall(1)
+        s = _wait(w, lambda s: s.statuses.get('cam1_x') == 'fault', 5.0)
+        assert s.positions['cam1_x'] < 0.1
+        # A new goal is refused by the stalled device (reported), until it is homed again.
+        w.submit_goal('cam1_x', 0.0)
+        _wait(w, lambda s: s.counters['rejected_goals'] >= 1, 5.0)
+    finally:
+        w.shutdown()

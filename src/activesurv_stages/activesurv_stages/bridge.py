@@ -160,10 +160,9 @@ class BridgeWorker:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            if self._driver is None:
-                if not self._connect():
-                    self._stop.wait(self.reconnect_period)
-                    continue
+            if self._driver is None and not self._connect():
+                self._stop.wait(self.reconnect_period)
+                continue
             try:
                 self._cycle()
             except CommunicationError as exc:

@@ -61,7 +61,7 @@ def test_replanning_mid_move_and_stop() -> None:
     lim = AxisLimits(-0.15, 0.15, 0.025, 0.1)
     ax = AxisSimulator(lim, 0.0, 0.0)
     ax.command(0.0, 0.1)
-    p, v = ax.state(1.0)
+    _, v = ax.state(1.0)
     assert v == pytest.approx(0.025)
     ax.command(1.0, -0.1)  # reverse while moving: brakes first, never exceeds the limits
     ts, s = _sample(ax.move, 20.0)

@@ -142,6 +142,10 @@ def _from_rest_or_towards(
         segs.append(Segment(dt, -s * a_max))
         vs = v_max
     v_peak_sq = a_max * dist + 0.5 * vs * vs
+    if v_peak_sq < vs * vs:
+        # Within rounding of the goal but still moving: brake to rest (overshoot < 1e-12).
+        segs.append(Segment(vs / a_max, -s * a_max))
+        return [seg for seg in segs if seg.duration > _EPS]
     if v_peak_sq <= v_max * v_max:
         v_peak = math.sqrt(max(v_peak_sq, 0.0))
         segs.append(Segment(max(v_peak - vs, 0.0) / a_max, s * a_max))
@@ -165,6 +169,8 @@ def plan_move(t0: float, p0: float, v0: float, goal: float, v_max: float, a_max:
         raise LimitError('move parameters must be finite')
     if v_max <= 0 or a_max <= 0:
         raise LimitError('v_max and a_max must be > 0')
+    if abs(goal - p0) < 4 * _EPS and abs(v0) < _EPS:
+        return Move(t0, p0, v0, (), goal)  # already there (same threshold as min_travel_time)
     segs: list[Segment] = []
     p, v = p0, v0
     s = 1.0 if goal >= p else -1.0

@@ -1,0 +1,247 @@
+"""Node tests: sim_stage limits on its JointState stream, xy_table + sim_stage on simulated time,
+and stage_bridge driving an emulated Zaber controller end to end."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from rclpy.parameter import Parameter
+
+from activesurv_stages import qos, topics
+from activesurv_stages.emulators import ZaberDeviceSpec, ZaberEmulator
+from activesurv_stages.sim_stage_node import SimStageNode
+from activesurv_stages.stage_bridge_node import StageBridgeNode
+
+
+def _goal(joints: list[str], positions: list[float], velocities: list[float] | None = None) -> Any:
+    from activesurv_interfaces.msg import StageGoal
+
+    return StageGoal(
+        joint_names=joints, positions=positions, max_velocities=velocities or [0.0] * len(joints)
+    )
+
+
+def test_sim_stage_stream_respects_limits(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    from sensor_msgs.msg import JointState
+
+    from activesurv_interfaces.msg import StageGoal
+
+    stage = SimStageNode(
+        parameter_overrides=[
+            Parameter('motion_class', value='fast'),
+            Parameter('publish_rate', value=100.0),
+        ]
+    )
+    peer = rclpy_context.create_node('sim_stage_test_peer')
+    stream: list[tuple[float, float, float]] = []
+
+    def on_js(msg: JointState) -> None:
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        stream.append((t, msg.position[0], msg.position[1]))
+
+    try:
+        peer.create_subscription(JointState, topics.joint_states('cam1'), on_js, qos.STATE)
+        pub = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+        assert spin_until([stage, peer], lambda: len(stream) > 5)
+        pub.publish(_goal(['cam1_x', 'cam1_yaw'], [0.1, -0.6]))
+        assert spin_until(
+            [stage, peer],
+            lambda: abs(stream[-1][1] - 0.1) < 1e-9 and abs(stream[-1][2] + 0.6) < 1e-9,
+            timeout=15.0,
+        )
+        s = np.array(stream)
+        t = s[:, 0]
+        for col, v_max, a_max in ((1, 0.025, 0.10), (2, 0.2, 0.8)):
+            v = np.diff(s[:, col]) / np.diff(t)
+            assert np.max(np.abs(v)) <= v_max * 1.01
+            a = np.diff(v) / np.diff(t)[1:]
+            # Finite differences of sampled positions: allow for sampling jitter.
+            assert np.percentile(np.abs(a), 99) <= a_max * 1.5
+        # Out of the soft limits or for an unknown joint: refused, nothing moves.
+        pub.publish(_goal(['cam1_x', 'nope'], [0.5, 0.0]))
+        n = stage.counts['refused']
+        assert spin_until([stage, peer], lambda: stage.counts['refused'] >= n + 2)
+        assert abs(stream[-1][1] - 0.1) < 1e-9
+    finally:
+        stage.destroy_node()
+        peer.destroy_node()
+
+
+def test_static_system_does_not_move(rclpy_context: Any, spin_until: Callable[..., bool]) -> None:
+    from activesurv_interfaces.msg import StageGoal
+
+    stage = SimStageNode(
+        parameter_overrides=[
+            Parameter('motion_class', value='static'),
+            Parameter('initial', value=[0.02, 0.3]),
+        ]
+    )
+    peer = rclpy_context.create_node('static_test_peer')
+    try:
+        pub = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+        pub.publish(_goal(['cam1_x'], [0.1]))
+        assert spin_until([stage, peer], lambda: stage.counts['refused'] >= 1)
+        assert 'static system' in stage.last_refusal
+        assert stage.axes['cam1_x'].state(1e12)[0] == pytest.approx(0.02)
+    finally:
+        stage.destroy_node()
+        peer.destroy_node()
+
+
+@pytest.mark.graph
+def test_xy_table_and_sim_stage_on_simulated_time(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+
+    from activesurv_bringup.launcher import Launcher, NodeSpec
+    from activesurv_interfaces.msg import ObjectState
+
+    specs = [
+        NodeSpec(
+            'xy_table',
+            'activesurv_stages.xy_table_node',
+            parameters={'real_time_factor': 2.0, 'start_time': 0.5},
+        ),
+        NodeSpec(
+            'sim_stage',
+            'activesurv_stages.sim_stage_node',
+            parameters={'use_sim_time': True, 'motion_class': 'medium'},
+        ),
+    ]
+    peer = rclpy_context.create_node('graph_peer')
+    clocks: list[float] = []
+    objects: list[ObjectState] = []
+    joints: list[JointState] = []
+    peer.create_subscription(
+        Clock, '/clock', lambda m: clocks.append(m.clock.sec + 1e-9 * m.clock.nanosec), qos.CLOCK
+    )
+    peer.create_subscription(ObjectState, topics.OBJECT_STATE, objects.append, qos.STATE)
+    peer.create_subscription(JointState, topics.joint_states('cam1'), joints.append, qos.STATE)
+    try:
+        with Launcher(specs, workdir=tmp_path) as launcher:
+            assert spin_until(
+                [peer],
+                lambda: (
+                    launcher.check() is None
+                    and len(clocks) > 50
+                    and len(joints) > 5
+                    and len(objects) > 50
+                ),
+                timeout=30.0,
+            )
+            launcher.check()
+    finally:
+        peer.destroy_node()
+    # Simulated time runs at about twice the wall clock and starts near 0.
+    assert 0.0 <= clocks[0] < 5.0
+    assert clocks[-1] > clocks[0]
+    # The stage stamps its joint states with simulated time, not the wall clock.
+    stamp = joints[-1].header.stamp.sec + 1e-9 * joints[-1].header.stamp.nanosec
+    assert stamp < 1000.0
+    # The object starts on the path's first point and moves along it.
+    first = objects[0].top_marker
+    assert (first.x, first.y) == pytest.approx((0.17, 0.06), abs=1e-3)
+    assert objects[-1].top_marker.x > first.x
+
+
+def test_stage_bridge_node_against_emulator(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    from sensor_msgs.msg import JointState
+
+    from activesurv_interfaces.msg import StageGoal
+
+    emu = ZaberEmulator(
+        tmp_path / 'ttyZ',
+        [
+            ZaberDeviceSpec(1, (0, 300_000), 300_000, 3e6),
+            ZaberDeviceSpec(2, (0, 3_000_000), 3e6, 3e7),
+        ],
+    )
+    cfg = {
+        'controller': {'protocol': 'zaber', 'port': str(tmp_path / 'ttyZ'), 'poll_rate': 50.0},
+        'axes': [
+            {
+                'joint': 'cam1_x',
+                'axis': '1',
+                'kind': 'linear',
+                'si_per_unit': 1e-6,
+                'offset': -0.15,
+                'min': -0.15,
+                'max': 0.15,
+                'max_velocity': 0.05,
+                'max_acceleration': 0.5,
+            },
+            {
+                'joint': 'cam1_yaw',
+                'axis': '2',
+                'kind': 'rotary',
+                'si_per_unit': 1e-6,
+                'offset': -1.5,
+                'min': -1.5,
+                'max': 1.5,
+                'max_velocity': 0.2,
+                'max_acceleration': 0.8,
+            },
+        ],
+    }
+    (tmp_path / 'zaber.yaml').write_text(yaml.safe_dump(cfg))
+    bridge = StageBridgeNode(
+        parameter_overrides=[
+            Parameter('config_file', value=str(tmp_path / 'zaber.yaml')),
+            Parameter('reconnect_period', value=0.2),
+        ]
+    )
+    peer = rclpy_context.create_node('bridge_test_peer')
+    stream: list[tuple[float, float]] = []
+    peer.create_subscription(
+        JointState,
+        topics.joint_states('cam1'),
+        lambda m: stream.append((time.monotonic(), m.position[0])),
+        qos.STATE,
+    )
+    pub = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+    round_trips = []
+    try:
+        assert spin_until([bridge, peer], lambda: len(stream) > 3, timeout=15.0)
+        target = -0.15
+        for _ in range(5):
+            target += 0.01
+            t0 = time.monotonic()
+            start_pos = stream[-1][1]
+            pub.publish(_goal(['cam1_x'], [target]))
+            assert spin_until(
+                [bridge, peer],
+                lambda t0=t0, p0=start_pos: stream[-1][0] > t0 and abs(stream[-1][1] - p0) > 1e-6,
+                timeout=10.0,
+            )
+            round_trips.append(
+                next(t for t, p in stream if t > t0 and abs(p - start_pos) > 1e-6) - t0
+            )
+            assert spin_until(
+                [bridge, peer], lambda g=target: abs(stream[-1][1] - g) < 2e-6, timeout=10.0
+            )
+        # Outside the soft limits: refused by the node, nothing written to the port.
+        before = len(emu.received)
+        pub.publish(_goal(['cam1_x'], [0.3]))
+        assert spin_until([bridge, peer], lambda: bridge.refusals >= 1)
+        assert not any(b'move abs' in line for line in emu.received[before:])
+    finally:
+        bridge.destroy_node()
+        peer.destroy_node()
+        emu.close()
+    # The measured round trip (goal in -> first JointState showing motion), for the README.
+    median_ms = 1e3 * statistics.median(round_trips)
+    print(f'bridge round trip median {median_ms:.1f} ms over {len(round_trips)} goals')
+    assert median_ms < 2000.0  # a sanity bound, not a timing goal (those live in the bench)

@@ -95,6 +95,15 @@ class SensorModel:
         tc = min(max(theta, self.theta_range[0]), self.theta_range[1])
         return np.asarray(np.exp(self.coefficients @ design_row(dc, tc)), dtype=np.float64)
 
+    def variances_batch(self, d: ArrayLike, theta: ArrayLike) -> Array:
+        """Vectorised :meth:`variances`: (N,) distances and bearings -> (N, 6) variances."""
+        dc = np.clip(np.asarray(d, dtype=np.float64), *self.d_range)
+        tc = np.clip(np.asarray(theta, dtype=np.float64), *self.theta_range)
+        basis = np.stack(
+            [np.ones_like(dc), dc, tc, dc * dc, dc * tc, tc * tc, np.log(tc + THETA0)], axis=-1
+        )
+        return np.asarray(np.exp(basis @ self.coefficients.T), dtype=np.float64)
+
     def covariance(self, d: float, theta: float) -> Array:
         """6x6 diagonal covariance in the camera optical frame."""
         return np.diag(self.variances(d, theta))

@@ -1,0 +1,176 @@
+"""Best achievable pose of a camera for a demand point (paper Section II-B, III-C-1).
+
+The best achievable pose is the stage configuration, reachable from the current one in the time
+left before the demand instant, that maximises the camera's visibility of the predicted target.
+The visibility depends only on the distance d and the bearing theta (Appendix A), provided the
+marker is in view. So for any linear position the best yaw is the one that centres the marker,
+clipped to what the rotary stage can reach. The heuristic search is then over the linear axis:
+a coarse grid of the reachable interval, evaluated in one vectorised batch, then a finer grid
+around the best sample. A rotary-only camera has a single candidate.
+
+Reachability: from the current position, an axis can reach ``reachable_distance(dt)`` in either
+direction (trapezoidal profile from rest, the same kinematics as the stages), clipped to the
+soft limits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_dispatch.sensors import Sensor
+from activesurv_dispatch.visibility import visibility_from_variances
+from activesurv_imaging.sensor_model import SensorModel
+from activesurv_stages.kinematics import reachable_distance
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Target:
+    """A predicted demand point: marker centre and unit normal (world)."""
+
+    position: Array
+    normal: Array
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A camera configuration and how well it sees the target."""
+
+    joints: Array
+    visibility: float
+    distance: float
+    bearing: float
+    in_view: bool
+
+
+def camera_frames(sensor: Sensor, q: Array) -> tuple[Array, Array]:
+    """Camera centres (N, 3) and rotations (N, 3, 3) for joint vectors ``q`` (N, J)."""
+    m = sensor.mount
+    q = np.atleast_2d(q)
+    lin = q[:, 0] if m.linear_axis is not None else np.zeros(len(q))
+    yaw = q[:, -1] + m.yaw_offset
+    c, s = np.cos(yaw), np.sin(yaw)
+    Rz = np.zeros((len(q), 3, 3))
+    Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
+    axis = m.linear_axis if m.linear_axis is not None else np.zeros(3)
+    centres = m.base[None, :] + lin[:, None] * axis[None, :] + Rz @ m.offset
+    return centres, Rz @ m.R_platform_camera
+
+
+def view_batch(
+    sensor: Sensor,
+    q: Array,
+    target: Target,
+    radius: float,
+    model: SensorModel,
+    margin_px: float = 8.0,
+) -> tuple[Array, Array, Array, Array]:
+    """(visibility, distance, bearing, in_view) for each joint vector in ``q`` (N, J)."""
+    centres, R = camera_frames(sensor, q)
+    rel = target.position[None, :] - centres
+    d = np.linalg.norm(rel, axis=1)
+    p = np.einsum('nji,nj->ni', R, rel)  # marker centre in each camera frame
+    cos_b = np.clip(-(rel @ target.normal) / np.maximum(d, 1e-12), -1.0, 1.0)
+    bearing = np.arccos(cos_b)
+    cam = sensor.camera
+    z = np.maximum(p[:, 2], 1e-9)
+    u = cam.fx * p[:, 0] / z + cam.cx
+    v = cam.fy * p[:, 1] / z + cam.cy
+    r_px = cam.fx * radius / z + margin_px
+    in_view = (
+        (p[:, 2] > radius)
+        & (u - r_px >= 0)
+        & (u + r_px <= cam.width - 1)
+        & (v - r_px >= 0)
+        & (v + r_px <= cam.height - 1)
+        & (bearing < model.max_bearing)
+    )
+    vis = visibility_from_variances(model.variances_batch(d, bearing))
+    return np.where(in_view, vis, 0.0), d, bearing, in_view
+
+
+def aim_yaw(sensor: Sensor, linear: Array, target: Target) -> Array:
+    """Rotary positions that point the optical axis at the target, for each linear position.
+
+    Two fixed-point steps account for the camera centre's offset from the rotation axis.
+    """
+    m = sensor.mount
+    axis = m.linear_axis if m.linear_axis is not None else np.zeros(3)
+    pivot = m.base[None, :] + np.atleast_1d(linear)[:, None] * axis[None, :]
+    # Direction of the optical axis in the platform frame (pitch only tilts it).
+    fwd = m.R_platform_camera[:, 2]
+    fwd_angle = math.atan2(fwd[1], fwd[0])
+    yaw = np.arctan2(target.position[1] - pivot[:, 1], target.position[0] - pivot[:, 0])
+    ox, oy = m.offset[0], m.offset[1]
+    for _ in range(2):
+        c, s = np.cos(yaw), np.sin(yaw)
+        centre = pivot + np.column_stack([c * ox - s * oy, s * ox + c * oy, np.zeros_like(c)])
+        yaw = np.arctan2(target.position[1] - centre[:, 1], target.position[0] - centre[:, 0])
+    out = yaw - fwd_angle - m.yaw_offset
+    return np.asarray((out + np.pi) % (2 * np.pi) - np.pi, dtype=np.float64)
+
+
+def reachable_box(sensor: Sensor, current: Array, dt: float) -> tuple[Array, Array]:
+    """Per-joint (low, high) reachable within ``dt`` seconds, inside the soft limits."""
+    lo, hi = [], []
+    for q, lim in zip(current, sensor.limits, strict=True):
+        r = reachable_distance(dt, lim.max_velocity, lim.max_acceleration) if sensor.moves else 0.0
+        lo.append(max(lim.min_position, min(q - r, lim.max_position)))
+        hi.append(min(lim.max_position, max(q + r, lim.min_position)))
+    return np.array(lo), np.array(hi)
+
+
+def best_achievable_pose(
+    sensor: Sensor,
+    current: ArrayLike,
+    target: Target,
+    dt: float,
+    model: SensorModel,
+    radius: float,
+    samples: int = 21,
+) -> Candidate:
+    """The reachable configuration with the highest visibility of ``target`` in ``dt`` seconds.
+
+    A static camera (or ``dt <= 0``) can only stay where it is.
+    """
+    q0 = np.asarray(current, dtype=np.float64)
+    lo, hi = reachable_box(sensor, q0, max(dt, 0.0))
+    if sensor.has_linear:
+        s = np.unique(np.concatenate([np.linspace(lo[0], hi[0], samples), [q0[0]]]))
+    else:
+        s = np.zeros(1)
+
+    def candidates(lin: Array) -> Array:
+        yaw = np.clip(aim_yaw(sensor, lin, target), lo[-1], hi[-1])
+        return np.column_stack([lin, yaw]) if sensor.has_linear else yaw[:, None]
+
+    q = candidates(s)
+    vis, d, b, inside = view_batch(sensor, q, target, radius, model)
+    best = int(np.argmax(vis))
+    if sensor.has_linear and len(s) > 2 and hi[0] > lo[0]:
+        step = (hi[0] - lo[0]) / (samples - 1)
+        fine = np.clip(np.linspace(q[best, 0] - step, q[best, 0] + step, 11), lo[0], hi[0])
+        qf = candidates(fine)
+        vf, df, bf, inf = view_batch(sensor, qf, target, radius, model)
+        j = int(np.argmax(vf))
+        if vf[j] > vis[best]:
+            return Candidate(qf[j], float(vf[j]), float(df[j]), float(bf[j]), bool(inf[j]))
+    if vis[best] <= 0.0:
+        # Nothing reachable sees it: keep the configuration nearest to the current one.
+        j = int(np.argmin(np.abs(q[:, 0] - q0[0]))) if sensor.has_linear else 0
+        return Candidate(q[j], 0.0, float(d[j]), float(b[j]), False)
+    return Candidate(q[best], float(vis[best]), float(d[best]), float(b[best]), True)
+
+
+def ideal_pose(
+    sensor: Sensor, current: ArrayLike, target: Target, model: SensorModel, radius: float
+) -> Candidate:
+    """The best pose anywhere within the soft limits (unlimited time: the clairvoyant bound)."""
+    big = 1e6
+    full = Sensor(sensor.camera_id, sensor.mount, sensor.camera, sensor.limits, True)
+    return best_achievable_pose(full, current, target, big, model, radius, samples=41)

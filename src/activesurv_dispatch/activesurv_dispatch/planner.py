@@ -1,0 +1,340 @@
+"""Sensor dispatching: assignment, preassignment and replanning (paper Section II, III-C).
+
+On every new rolling horizon, :meth:`DispatchPlanner.plan`:
+
+1. **Assignment and positioning** (II-B, III-C-1). The first unserviced demand gets k cameras,
+   picked by an increasingly complex iterative ranking:
+
+   a. *A priori*: a camera that cannot see the demand from anywhere on its stages, because the
+      marker faces away from every position it can take, is ranked last.
+   b. *Normalised distance*: the joint-space distance from the current pose to the camera's
+      ideal pose (unlimited time), divided by what the stages cover in the time left
+      (``max velocity x time``). The closest ranks highest.
+   c. *Visibility* (eq. 1) at the best achievable pose, computed for the best ``k + extra``
+      cameras of ranking (b). The top k by visibility are assigned, except those that cannot
+      see the demand at all (unless none can).
+
+   The assignment is frozen until the demand is serviced (:meth:`serviced`). Its desired poses
+   are not frozen: see 3.
+2. **Preassignment and prepositioning** (II-C). Cameras not assigned to the first demand go to
+   the next demands in turn, up to k per demand, until all are placed or the horizon ends. They
+   are re-planned on every horizon.
+3. **Replanning** (II-D). When the new prediction of an assigned demand leaves the box
+   ``|delta| <= rho * sigma`` (x, y, z) around the prediction used at assignment, the desired
+   poses of its cameras are recomputed, and that prediction becomes the new reference.
+
+Cameras with nothing to do keep their poses (idle). A static system only re-ranks; its poses are
+its initial ones.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from activesurv_dispatch.best_pose import (
+    Candidate,
+    Target,
+    aim_yaw,
+    best_achievable_pose,
+    camera_frames,
+    view_batch,
+)
+from activesurv_dispatch.errors import DispatchConfigError
+from activesurv_dispatch.sensors import Sensor, Setup
+from activesurv_dispatch.visibility import fused_visibility
+from activesurv_imaging.sensor_model import SensorModel
+
+Array = NDArray[np.float64]
+
+
+class Role(Enum):
+    """Mirrors the ROLE_* constants of ``activesurv_interfaces/SensorAssignment``."""
+
+    IDLE = 0
+    ASSIGNED = 1
+    PREASSIGNED = 2
+
+
+@dataclass(frozen=True)
+class Demand:
+    """A predicted demand point (world, SI)."""
+
+    index: int
+    time: float
+    position: Array
+    normal: Array
+    covariance: Array  # 6x6 over (x, y, z, rot_x, rot_y, rot_z)
+
+    @property
+    def target(self) -> Target:
+        return Target(self.position, self.normal)
+
+    def sigma(self) -> Array:
+        return np.sqrt(np.maximum(np.diag(self.covariance)[:3], 0.0))
+
+
+@dataclass(frozen=True)
+class Assignment:
+    camera_id: str
+    role: Role
+    demand_index: int
+    desired: Array
+    visibility: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planning result.
+
+    Attributes:
+        stamp: planning time.
+        first_index: the demand being serviced next (-1: none).
+        assignments: one per camera.
+        fused_visibility: v_f (eq. 2) of the assigned cameras at their desired poses.
+        replanned: this plan replanned the first demand (II-D).
+        ranking: camera ids of the first demand, best first, with their visibilities.
+    """
+
+    stamp: float
+    first_index: int
+    assignments: dict[str, Assignment]
+    fused_visibility: float
+    replanned: bool
+    ranking: tuple[tuple[str, float], ...] = ()
+
+    def assigned(self) -> list[str]:
+        return [c for c, a in self.assignments.items() if a.role is Role.ASSIGNED]
+
+
+@dataclass
+class _Frozen:
+    cameras: tuple[str, ...]
+    reference: Demand
+    desired: dict[str, Candidate] = field(default_factory=dict)
+
+
+class DispatchPlanner:
+    """Plans camera assignments and desired poses from the rolling horizon (pure core)."""
+
+    def __init__(
+        self,
+        setup: Setup,
+        model: SensorModel,
+        k: int = 3,
+        rho: float = 1.0,
+        settle_time: float = 0.1,
+        extra: int = 2,
+        samples: int = 21,
+    ) -> None:
+        if k < 1:
+            raise DispatchConfigError(f'k must be >= 1, got {k}')
+        if not (math.isfinite(rho) and rho > 0):
+            raise DispatchConfigError(f'rho must be finite and > 0, got {rho}')
+        self.setup = setup
+        self.model = model
+        self.k = k
+        self.rho = rho
+        self.settle_time = settle_time
+        self.extra = extra
+        self.samples = samples
+        self.sensors = {s.camera_id: s for s in setup.sensors}
+        self._frozen: dict[int, _Frozen] = {}
+        self._serviced: set[int] = set()
+        self.replans = 0
+        self.excluded: set[str] = set()  # cameras judged dead: not dispatched
+
+    # -- bookkeeping -------------------------------------------------------------------------
+    def serviced(self, index: int) -> None:
+        """Demand ``index`` has been captured: release its frozen assignment."""
+        self._serviced.add(index)
+        self._frozen.pop(index, None)
+
+    def frozen_cameras(self, index: int) -> tuple[str, ...]:
+        f = self._frozen.get(index)
+        return f.cameras if f else ()
+
+    def exclude(self, camera_id: str, dead: bool = True) -> None:
+        """Take a camera out of (or back into) dispatching, e.g. when its nodes died."""
+        if dead:
+            self.excluded.add(camera_id)
+            for f in self._frozen.values():
+                if camera_id in f.cameras:
+                    f.cameras = tuple(c for c in f.cameras if c != camera_id)
+                    f.desired.pop(camera_id, None)
+        else:
+            self.excluded.discard(camera_id)
+
+    # -- ranking -----------------------------------------------------------------------------
+    def _can_ever_see(self, sensor: Sensor, demand: Demand) -> bool:
+        lims = sensor.limits
+        if sensor.has_linear:
+            lin = np.linspace(lims[0].min_position, lims[0].max_position, 5)
+        else:
+            lin = np.zeros(1)
+        q = np.column_stack([lin, np.zeros_like(lin)]) if sensor.has_linear else lin[:, None]
+        centres, _ = camera_frames(sensor, q)
+        facing = (centres - demand.position[None, :]) @ demand.normal
+        return bool(np.any(facing > 0.0))
+
+    def _normalised_distance(self, sensor: Sensor, q0: Array, demand: Demand, dt: float) -> float:
+        """Joint-space distance to the ideal pose over what the stages cover in ``dt``."""
+        lims = sensor.limits
+        yaw_goal = aim_yaw(sensor, np.array([q0[0] if sensor.has_linear else 0.0]), demand.target)[
+            0
+        ]
+        dist = [abs(yaw_goal - q0[-1]) / max(lims[-1].max_velocity * max(dt, 1e-3), 1e-12)]
+        if sensor.has_linear:
+            # The ideal linear position: where the bearing is about 40 degrees (the sensor
+            # model's optimum) on the camera's side, within the stage range.
+            centre, _ = camera_frames(sensor, q0[None, :])
+            dy = abs(demand.position[1] - centre[0, 1])
+            side = 1.0 if centre[0, 0] >= demand.position[0] else -1.0
+            x_goal = demand.position[0] + side * dy * math.tan(math.radians(40.0))
+            axis = sensor.mount.linear_axis
+            assert axis is not None
+            s_goal = float(
+                np.clip(
+                    (x_goal - sensor.mount.base[0]) / (axis[0] or 1.0),
+                    lims[0].min_position,
+                    lims[0].max_position,
+                )
+            )
+            dist.append(abs(s_goal - q0[0]) / max(lims[0].max_velocity * max(dt, 1e-3), 1e-12))
+        return max(dist)
+
+    def rank(
+        self,
+        demand: Demand,
+        cameras: Sequence[str],
+        joints: dict[str, Array],
+        now: float,
+        limit: int | None = None,
+    ) -> list[tuple[str, Candidate]]:
+        """Cameras ordered best first for ``demand``, with their best achievable poses.
+
+        Only the best ``limit`` of the normalised-distance ranking get the full visibility
+        optimisation (default: k + extra); the rest follow with zero visibility.
+        """
+        dt = demand.time - now - self.settle_time
+        scored = []
+        for cid in cameras:
+            s = self.sensors[cid]
+            q0 = joints[cid]
+            a_priori = self._can_ever_see(s, demand)
+            nd = self._normalised_distance(s, q0, demand, dt)
+            scored.append((0 if a_priori else 1, nd, cid))
+        scored.sort()
+        n_full = len(scored) if limit is None else limit
+        out: list[tuple[str, Candidate]] = []
+        for i, (excluded, _, cid) in enumerate(scored):
+            s = self.sensors[cid]
+            if i < n_full and not excluded:
+                cand = best_achievable_pose(
+                    s,
+                    joints[cid],
+                    demand.target,
+                    dt,
+                    self.model,
+                    self.setup.marker_radius,
+                    self.samples,
+                )
+            else:
+                cand = Candidate(joints[cid], 0.0, math.nan, math.nan, False)
+            out.append((cid, cand))
+        # Stable sort: equal visibilities keep the normalised-distance order.
+        out.sort(key=lambda item: -item[1].visibility)
+        return out
+
+    # -- planning ----------------------------------------------------------------------------
+    def _replan_needed(self, reference: Demand, new: Demand) -> bool:
+        delta = np.abs(new.position - reference.position)
+        return bool(np.any(delta > self.rho * reference.sigma()))
+
+    def plan(self, now: float, demands: Sequence[Demand], joints: dict[str, Array]) -> Plan:
+        """Plan for the current horizon; ``joints`` holds each camera's current positions.
+
+        Cameras missing from ``joints`` (no stage state yet) or excluded are not dispatched.
+        """
+        cams = [c for c in self.sensors if c in joints and c not in self.excluded]
+        horizon = sorted(
+            (d for d in demands if d.index not in self._serviced and d.time > now),
+            key=lambda d: d.index,
+        )
+        assignments: dict[str, Assignment] = {}
+        replanned = False
+        ranking: tuple[tuple[str, float], ...] = ()
+        fused = 0.0
+        first_index = horizon[0].index if horizon else -1
+        free = list(cams)
+        limit = min(len(cams), self.k + self.extra)
+        if horizon:
+            first = horizon[0]
+            frozen = self._frozen.get(first.index)
+            if frozen is None:
+                ranked = self.rank(first, cams, joints, now, limit)
+                ranking = tuple((c, cand.visibility) for c, cand in ranked)
+                # Only cameras that can see the demand are worth freezing on it; if none can,
+                # the best k still try (the demand then gets an explicit failure, not silence).
+                chosen = [item for item in ranked[: self.k] if item[1].visibility > 0.0] or ranked[
+                    : self.k
+                ]
+                frozen = _Frozen(tuple(c for c, _ in chosen), first, dict(chosen))
+                self._frozen[first.index] = frozen
+            else:
+                alive = [c for c in frozen.cameras if c in joints and c not in self.excluded]
+                if self._replan_needed(frozen.reference, first):
+                    dt = first.time - now - self.settle_time
+                    for c in alive:
+                        frozen.desired[c] = best_achievable_pose(
+                            self.sensors[c],
+                            joints[c],
+                            first.target,
+                            dt,
+                            self.model,
+                            self.setup.marker_radius,
+                            self.samples,
+                        )
+                    frozen.reference = first
+                    self.replans += 1
+                    replanned = True
+                ranking = tuple((c, frozen.desired[c].visibility) for c in alive)
+            for c in frozen.cameras:
+                if c in frozen.desired and c in free:
+                    cand = frozen.desired[c]
+                    assignments[c] = Assignment(
+                        c, Role.ASSIGNED, first.index, cand.joints, cand.visibility
+                    )
+                    free.remove(c)
+            fused = self.fused_visibility(first, {c: assignments[c].desired for c in assignments})
+            # Preassignment and prepositioning of the rest, demand by demand.
+            for later in horizon[1:]:
+                if not free:
+                    break
+                ranked = self.rank(later, free, joints, now, min(len(free), limit))
+                for c, cand in ranked[: self.k]:
+                    assignments[c] = Assignment(
+                        c, Role.PREASSIGNED, later.index, cand.joints, cand.visibility
+                    )
+                    free.remove(c)
+        for c in free:
+            assignments[c] = Assignment(c, Role.IDLE, -1, joints[c], 0.0)
+        return Plan(now, first_index, assignments, fused, replanned, ranking)
+
+    def fused_visibility(self, demand: Demand, poses: dict[str, Array]) -> float:
+        """v_f (eq. 2) of cameras at ``poses`` for ``demand``; out-of-view cameras add nothing."""
+        Rs = []
+        for c, q in poses.items():
+            s = self.sensors[c]
+            _, R = camera_frames(s, np.asarray(q)[None, :])
+            _, d, b, inside = view_batch(
+                s, np.asarray(q)[None, :], demand.target, self.setup.marker_radius, self.model
+            )
+            if inside[0]:
+                Rs.append(self.model.world_covariance(float(d[0]), float(b[0]), R[0]))
+        return fused_visibility(Rs)

@@ -1,0 +1,166 @@
+"""Sensor descriptions: each dynamic camera's mount, stages, limits and intrinsics (YAML).
+
+``config/paper_setup.yaml`` ships the paper's set-up (Fig. 4, Table I): four cameras that all
+rotate about z; cam1 and cam4 also translate along world x on 300 mm linear stages. A motion
+class (static, medium, fast) caps the stage velocities and accelerations (paper Section IV-A).
+Joint order per camera: linear first (if any), then rotary; linear positions in m, rotary in rad.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from activesurv_dispatch.errors import DispatchConfigError
+from activesurv_imaging.camera_model import CameraModel, dynamic_camera
+from activesurv_imaging.mount import CameraMount
+from activesurv_stages.config import MotionClass, motion_class
+from activesurv_stages.kinematics import AxisLimits
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One dynamic camera.
+
+    Attributes:
+        camera_id: ``cam1`` ...
+        mount: where it sits and how its stages move it.
+        camera: intrinsics.
+        limits: per joint (mount.joint_names order): soft limits, and the motion class's caps.
+        moves: False for a static system (its cameras keep their initial poses).
+    """
+
+    camera_id: str
+    mount: CameraMount
+    camera: CameraModel
+    limits: tuple[AxisLimits, ...]
+    moves: bool = True
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.mount.joint_names
+
+    @property
+    def has_linear(self) -> bool:
+        return self.mount.linear_axis is not None
+
+    def clamp(self, q: Array) -> Array:
+        return np.array(
+            [
+                min(max(v, lim.min_position), lim.max_position)
+                for v, lim in zip(q, self.limits, strict=True)
+            ]
+        )
+
+
+def _sensor(entry: dict[str, Any], cls: MotionClass) -> Sensor:
+    try:
+        cid = str(entry['id'])
+        mount_cfg = entry['mount']
+        linear = entry.get('linear')
+        rotary = entry['rotary']
+        mount = CameraMount(
+            cid,
+            np.array(mount_cfg['base'], dtype=float),
+            float(mount_cfg.get('yaw_offset', 0.0)),
+            float(mount_cfg.get('pitch', 0.0)),
+            np.array(mount_cfg.get('offset', [0, 0, 0]), dtype=float),
+            np.array(linear['axis'], dtype=float) if linear else None,
+        )
+        limits = []
+        if linear:
+            v, a = cls.limits('linear')
+            limits.append(
+                AxisLimits(float(linear['min']), float(linear['max']), v or 1e-9, a or 1e-9)
+            )
+        v, a = cls.limits('rotary')
+        limits.append(AxisLimits(float(rotary['min']), float(rotary['max']), v or 1e-9, a or 1e-9))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DispatchConfigError(f'camera entry {entry.get("id", "?")}: {exc!r}') from exc
+    intr = entry.get('intrinsics')
+    camera = CameraModel.load(intr) if intr else dynamic_camera(cid)
+    return Sensor(cid, mount, camera, tuple(limits), cls.moves)
+
+
+@dataclass(frozen=True)
+class Setup:
+    """The camera system and the target geometry it is dispatched for."""
+
+    sensors: tuple[Sensor, ...]
+    initial: dict[str, Array]
+    marker_radius: float
+    motion: MotionClass
+
+    def sensor(self, camera_id: str) -> Sensor:
+        for s in self.sensors:
+            if s.camera_id == camera_id:
+                return s
+        raise DispatchConfigError(f'no camera {camera_id!r} in the set-up')
+
+    def with_initial(self, initial: dict[str, Array]) -> Setup:
+        return replace(self, initial={k: np.asarray(v, dtype=float) for k, v in initial.items()})
+
+
+def setup_from_dict(data: dict[str, Any], motion: str = 'fast') -> Setup:
+    """Parse a set-up; ``motion`` picks the motion class that caps the stages.
+
+    Raises:
+        DispatchConfigError: naming what is wrong.
+    """
+    if not isinstance(data, dict) or 'cameras' not in data:
+        raise DispatchConfigError('a set-up needs a "cameras" list')
+    cls = motion_class(motion)
+    sensors = tuple(_sensor(e, cls) for e in data['cameras'])
+    ids = [s.camera_id for s in sensors]
+    if len(set(ids)) != len(ids):
+        raise DispatchConfigError(f'duplicate camera ids {ids}')
+    initial = {}
+    for s, e in zip(sensors, data['cameras'], strict=True):
+        q = np.array(e.get('initial', [0.0] * len(s.joint_names)), dtype=float)
+        if q.shape != (len(s.joint_names),) or not np.all(np.isfinite(q)):
+            raise DispatchConfigError(f'{s.camera_id}: initial needs {len(s.joint_names)} numbers')
+        for v, lim in zip(q, s.limits, strict=True):
+            lim.check_position(float(v), f'{s.camera_id} initial position')
+        initial[s.camera_id] = q
+    radius = float(data.get('marker_radius', 0.0125))
+    if not (math.isfinite(radius) and radius > 0):
+        raise DispatchConfigError('marker_radius must be > 0')
+    return Setup(sensors, initial, radius, cls)
+
+
+def default_setup_path() -> Path:
+    """The paper's set-up, shipped in the package's config directory."""
+    here = Path(__file__).resolve().parent
+    for candidate in (
+        here.parent / 'config' / 'paper_setup.yaml',
+        here / 'data' / 'paper_setup.yaml',
+    ):
+        if candidate.exists():
+            return candidate
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return (
+            Path(get_package_share_directory('activesurv_dispatch'))
+            / 'config'
+            / 'paper_setup.yaml'
+        )
+    except (ImportError, LookupError) as exc:
+        raise DispatchConfigError('cannot find config/paper_setup.yaml') from exc
+
+
+def load_setup(path: Path | str | None = None, motion: str = 'fast') -> Setup:
+    p = default_setup_path() if path is None else Path(path)
+    try:
+        data = yaml.safe_load(p.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise DispatchConfigError(f'cannot read set-up {p}: {exc}') from exc
+    return setup_from_dict(data, motion)

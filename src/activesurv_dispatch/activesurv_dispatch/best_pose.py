@@ -150,7 +150,7 @@ def best_achievable_pose(
         return np.column_stack([lin, yaw]) if sensor.has_linear else yaw[:, None]
 
     q = candidates(s)
-    vis, d, b, inside = view_batch(sensor, q, target, radius, model)
+    vis, d, b, _ = view_batch(sensor, q, target, radius, model)
     best = int(np.argmax(vis))
     if sensor.has_linear and len(s) > 2 and hi[0] > lo[0]:
         step = (hi[0] - lo[0]) / (samples - 1)

@@ -206,7 +206,7 @@ class DispatchPlanner:
                 )
             )
             dist.append(abs(s_goal - q0[0]) / max(lims[0].max_velocity * max(dt, 1e-3), 1e-12))
-        return max(dist)
+        return float(max(dist))
 
     def rank(
         self,

@@ -82,10 +82,10 @@ def _static_coverage(
     cands: dict[str, Array] = {}
     vis: dict[str, Array] = {}
     for s in setup.sensors:
-        c = _grid(s, 31, 241)
-        cands[s.camera_id] = c
+        grid = _grid(s, 31, 241)
+        cands[s.camera_id] = grid
         vis[s.camera_id] = np.array(
-            [view_batch(s, c, d.target, radius, model)[0] for d in expected]
+            [view_batch(s, grid, d.target, radius, model)[0] for d in expected]
         ).T  # (candidates, demands)
     scale = max(float(max(v.max() for v in vis.values())), 1e-300) * len(expected)
     seen = {c: (v > 0).astype(int) for c, v in vis.items()}

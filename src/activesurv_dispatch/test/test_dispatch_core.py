@@ -1,0 +1,228 @@
+"""Core tests of the dispatching (no ROS): visibility, best achievable pose, assignment,
+preassignment, replanning, motion control and initial-pose determination."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from activesurv_dispatch.best_pose import (
+    Target,
+    best_achievable_pose,
+    reachable_box,
+    view_batch,
+)
+from activesurv_dispatch.errors import DispatchConfigError
+from activesurv_dispatch.initial_pose import initial_poses
+from activesurv_dispatch.motion import CaptureScheduler, MotionController
+from activesurv_dispatch.planner import Demand, DispatchPlanner, Role
+from activesurv_dispatch.sensors import load_setup
+from activesurv_dispatch.visibility import fused_visibility, single_visibility
+from activesurv_imaging.sensor_model import SensorModel
+
+MODEL = SensorModel.load()
+NORMAL = np.array([0.0, -1.0, 0.0])
+COV = np.diag([4e-6, 4e-6, 2.5e-7, 1e-4, 1e-4, 1e-4])  # 2 mm prediction std in x, y
+
+
+def _demand(j: int, t: float, x: float, y: float = 0.05) -> Demand:
+    return Demand(j, t, np.array([x, y, 0.05]), NORMAL, COV)
+
+
+# -- visibility ----------------------------------------------------------------------------
+def test_visibility_is_eq_1_and_2() -> None:
+    R = np.diag([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]) * 1e-8
+    assert single_visibility(R) == pytest.approx(1.0 / np.linalg.norm(R, 'fro'))
+    assert fused_visibility([R]) == pytest.approx(single_visibility(R))
+    # Three identical sensors: P = R / 3.
+    assert fused_visibility([R, R, R]) == pytest.approx(3.0 * single_visibility(R))
+    assert fused_visibility([]) == 0.0
+    A = np.array([[2.0, 0.5], [0.5, 1.0]])  # any square matrix
+    B = np.array([[1.0, 0.0], [0.0, 3.0]])
+    P = np.linalg.inv(np.linalg.inv(A) + np.linalg.inv(B))
+    assert fused_visibility([A, B]) == pytest.approx(1.0 / np.linalg.norm(P, 'fro'))
+    with pytest.raises(ValueError, match='square'):
+        single_visibility(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match='NaN'):
+        fused_visibility([np.full((2, 2), np.nan)])
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(1e-9, 1e-3), min_size=6, max_size=6), st.integers(1, 5))
+def test_more_sensors_never_see_less(diag: list[float], n: int) -> None:
+    R = np.diag(diag)
+    vis = [fused_visibility([R] * m) for m in range(1, n + 1)]
+    assert all(b >= a * (1 - 1e-9) for a, b in zip(vis, vis[1:], strict=False))
+
+
+# -- best achievable pose ------------------------------------------------------------------
+@pytest.mark.parametrize('motion', ['medium', 'fast'])
+def test_best_achievable_pose_is_reachable_and_best(motion: str) -> None:
+    setup = load_setup(motion=motion)
+    s = setup.sensor('cam1')
+    q0 = np.array([0.05, -0.5])
+    target = Target(np.array([0.24, 0.06, 0.05]), NORMAL)
+    dt = 3.0
+    best = best_achievable_pose(s, q0, target, dt, MODEL, setup.marker_radius)
+    lo, hi = reachable_box(s, q0, dt)
+    assert np.all(best.joints >= lo - 1e-12)
+    assert np.all(best.joints <= hi + 1e-12)
+    assert best.in_view
+    # Brute force over the reachable box: nothing is more than 1 % better.
+    grid = np.array(
+        [[a, b] for a in np.linspace(lo[0], hi[0], 61) for b in np.linspace(lo[1], hi[1], 241)]
+    )
+    vis = view_batch(s, grid, target, setup.marker_radius, MODEL)[0]
+    assert best.visibility >= 0.99 * vis.max()
+
+
+def test_static_camera_cannot_move() -> None:
+    setup = load_setup(motion='static')
+    s = setup.sensor('cam2')
+    target = Target(np.array([0.24, 0.06, 0.05]), NORMAL)
+    best = best_achievable_pose(s, np.array([0.3]), target, 10.0, MODEL, setup.marker_radius)
+    assert best.joints == pytest.approx([0.3])
+
+
+# -- assignment, preassignment, replanning -------------------------------------------------
+def _aimed_joints(setup_motion: str, x: float) -> dict[str, np.ndarray]:
+    """Every camera already pointing at a target at (x, 0.05): the best it can do in no time."""
+    setup = load_setup(motion=setup_motion)
+    target = Target(np.array([x, 0.05, 0.05]), NORMAL)
+    out = {}
+    for s in setup.sensors:
+        q0 = setup.initial[s.camera_id]
+        out[s.camera_id] = best_achievable_pose(s, q0, target, 100.0, MODEL, 0.0125).joints
+    return out
+
+
+def test_assignment_picks_the_k_best_and_preassigns_the_rest() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    demands = [_demand(0, 2.0, 0.25), _demand(1, 3.0, 0.27), _demand(2, 4.0, 0.29)]
+    plan = planner.plan(0.0, demands, joints)
+    assigned = plan.assigned()
+    assert len(assigned) == 3
+    # The ranking is by visibility at the best achievable pose, and the top 3 are assigned.
+    ranked = [c for c, _ in plan.ranking]
+    assert set(assigned) == set(ranked[:3])
+    vis = dict(plan.ranking)
+    assert min(vis[c] for c in assigned) >= vis[ranked[3]]
+    rest = ranked[3]
+    assert plan.assignments[rest].role is Role.PREASSIGNED
+    assert plan.assignments[rest].demand_index == 1
+    assert plan.fused_visibility > max(vis.values())  # fusing three beats the best single one
+
+
+def test_assignment_is_frozen_until_serviced() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    d0 = _demand(0, 2.0, 0.25)
+    first = planner.plan(0.0, [d0, _demand(1, 3.0, 0.27)], joints).assigned()
+    # A much better position for another camera does not change the frozen subset.
+    later = planner.plan(0.5, [d0, _demand(1, 3.0, 0.27)], _aimed_joints('fast', 0.20))
+    assert later.assigned() == first
+    planner.serviced(0)
+    after = planner.plan(2.1, [_demand(1, 3.0, 0.27)], joints)
+    assert after.first_index == 1
+
+
+def test_replanning_only_outside_the_uncertainty_box() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3, rho=1.0)
+    plan0 = planner.plan(0.0, [_demand(0, 3.0, 0.25)], joints)
+    inside = planner.plan(0.2, [_demand(0, 3.0, 0.25 + 0.001)], joints)  # 1 mm < 2 mm sigma
+    assert not inside.replanned
+    assert planner.replans == 0
+    moved = planner.plan(0.4, [_demand(0, 3.0, 0.25 + 0.01)], joints)  # 10 mm > 2 mm sigma
+    assert moved.replanned
+    assert planner.replans == 1
+    assert moved.assigned() == plan0.assigned()  # same subset, new poses
+    cam = next(c for c in moved.assigned() if setup.sensor(c).has_linear)
+    assert not np.allclose(moved.assignments[cam].desired, plan0.assignments[cam].desired)
+
+
+def test_dead_camera_is_not_dispatched() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    d0 = _demand(0, 2.0, 0.25)
+    first = planner.plan(0.0, [d0], joints).assigned()
+    planner.exclude(first[0])
+    again = planner.plan(0.1, [d0], joints)
+    assert first[0] not in again.assigned()
+    assert first[0] not in again.assignments
+
+
+def test_planner_rejects_bad_parameters() -> None:
+    setup = load_setup(motion='fast')
+    with pytest.raises(DispatchConfigError):
+        DispatchPlanner(setup, MODEL, k=0)
+    with pytest.raises(DispatchConfigError):
+        DispatchPlanner(setup, MODEL, rho=math.nan)
+
+
+# -- motion control and capture timing -----------------------------------------------------
+def test_motion_deadband_holding_and_capture_timing() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    d0 = _demand(0, 2.0, 0.25)
+    plan = planner.plan(0.0, [d0], joints)
+    mc = MotionController(setup)
+    cmds = mc.commands(plan, {0: d0})
+    assert {c.camera_id for c in cmds} == set(plan.assigned())
+    for c in cmds:
+        lims = setup.sensor(c.camera_id).limits
+        assert list(c.max_velocities) == [lim.max_velocity for lim in lims]
+        assert c.arrival_time == 2.0
+    assert mc.commands(plan, {0: d0}) == []  # unchanged: nothing sent again
+    sched = CaptureScheduler(lead=0.3)
+    assert sched.due(1.6, plan, {0: d0}) is None
+    cap = sched.due(1.75, plan, {0: d0})
+    assert cap is not None
+    assert set(cap.cameras) == set(plan.assigned())
+    assert sched.due(1.8, plan, {0: d0}) is None  # once
+    assert sched.newly_serviced(1.9) == []
+    assert [c.demand.index for c in sched.newly_serviced(2.0)] == [0]
+
+
+# -- initial poses -------------------------------------------------------------------------
+def _expected() -> list[Demand]:
+    xs = np.linspace(0.19, 0.31, 10)
+    return [
+        _demand(j, 2.0 + j, float(x), 0.05 + 0.05 * (1 - ((x - 0.25) / 0.06) ** 2))
+        for j, x in enumerate(xs)
+    ]
+
+
+def test_static_initial_poses_cover_every_demand_twice() -> None:
+    setup = load_setup(motion='static')
+    poses = initial_poses(setup, MODEL, _expected())
+    counts = np.zeros(10, dtype=int)
+    for s in setup.sensors:
+        for j, d in enumerate(_expected()):
+            counts[j] += bool(
+                view_batch(s, poses[s.camera_id][None, :], d.target, 0.0125, MODEL)[3][0]
+            )
+    assert counts.min() >= 2
+
+
+def test_moving_initial_poses_see_the_first_demands() -> None:
+    for motion in ('medium', 'fast'):
+        setup = load_setup(motion=motion)
+        poses = initial_poses(setup, MODEL, _expected()[:4])
+        seeing = sum(
+            best_achievable_pose(
+                s, poses[s.camera_id], _expected()[0].target, 2.0, MODEL, 0.0125
+            ).in_view
+            for s in setup.sensors
+        )
+        assert seeing >= 3, motion

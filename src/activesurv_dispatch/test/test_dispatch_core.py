@@ -4,6 +4,7 @@ preassignment, replanning, motion control and initial-pose determination."""
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -56,7 +57,7 @@ def test_visibility_is_eq_1_and_2() -> None:
 def test_more_sensors_never_see_less(diag: list[float], n: int) -> None:
     R = np.diag(diag)
     vis = [fused_visibility([R] * m) for m in range(1, n + 1)]
-    assert all(b >= a * (1 - 1e-9) for a, b in zip(vis, vis[1:], strict=False))
+    assert all(b >= a * (1 - 1e-9) for a, b in pairwise(vis))
 
 
 # -- best achievable pose ------------------------------------------------------------------

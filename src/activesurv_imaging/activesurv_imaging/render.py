@@ -6,7 +6,8 @@ in front of a uniform background. Rendering casts a ray through every pixel cent
 edge (a neighbour differs) are re-rendered with ``supersample x supersample`` rays, which gives
 anti-aliased edges at a fraction of the cost of supersampling the whole frame. Then the image is
 blurred (lens), photon shot noise and read noise are added, and it is quantised to 8 bits.
-Everything random comes from a seeded ``numpy.random.Generator``.
+Only each plate's projected bounding box is ray-cast (the rest is background). Everything random
+comes from a seeded ``numpy.random.Generator``.
 """
 
 from __future__ import annotations
@@ -191,6 +192,104 @@ def _shade(
     return level, label
 
 
+class Renderer:
+    """Renders frames for one camera; keeps the camera-frame ray of every pixel between frames.
+
+    Only pixels inside the projected bounding box of some plate are ray-cast; the rest of the
+    image is the uniform background, exactly, so this changes no pixel.
+    """
+
+    def __init__(self, camera: CameraModel) -> None:
+        self.camera = camera
+        h, w = camera.height, camera.width
+        uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+        self._rays = camera.rays(np.column_stack([uu.ravel(), vv.ravel()])).reshape(h, w, 3)
+
+    def _plate_box(self, plate: Plate, T: Transform) -> tuple[int, int, int, int] | None:
+        """Pixel bounding box (u0, u1, v0, v1) of a plate, or None when it is not in front."""
+        h0, h1 = plate.half_size
+        corners = np.array(
+            [
+                plate.center + sa * h0 * plate.x_axis + sb * h1 * plate.y_axis
+                for sa in (-1, 1)
+                for sb in (-1, 1)
+            ]
+        )
+        p = (corners - T.t) @ T.R  # camera frame
+        if np.any(p[:, 2] <= 1e-6):
+            return 0, self.camera.width, 0, self.camera.height  # straddles the camera: all
+        px = self.camera.project(p)
+        u0, v0 = np.floor(px.min(axis=0)).astype(int) - 3
+        u1, v1 = np.ceil(px.max(axis=0)).astype(int) + 4
+        u0, u1 = max(u0, 0), min(u1, self.camera.width)
+        v0, v1 = max(v0, 0), min(v1, self.camera.height)
+        return (u0, u1, v0, v1) if u0 < u1 and v0 < v1 else None
+
+    def render(
+        self,
+        T_world_camera: Transform,
+        scene: Scene,
+        noise: SensorNoise | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> NDArray[np.uint8]:
+        """See :func:`render`."""
+        noise = SensorNoise() if noise is None else noise
+        if noise.supersample < 1:
+            raise RenderError('supersample must be >= 1')
+        cam = self.camera
+        h, w = cam.height, cam.width
+        origin, R = T_world_camera.t, T_world_camera.R
+        img: Array = np.full((h, w), scene.background, dtype=np.float64)
+        lab = np.zeros((h, w), dtype=np.int64)
+        boxes = [b for b in (self._plate_box(pl, T_world_camera) for pl in scene.plates) if b]
+        if boxes:
+            u0 = min(b[0] for b in boxes)
+            u1 = max(b[1] for b in boxes)
+            v0 = min(b[2] for b in boxes)
+            v1 = max(b[3] for b in boxes)
+            dirs = self._rays[v0:v1, u0:u1].reshape(-1, 3) @ R.T
+            level, label = _shade(scene, origin, dirs)
+            img[v0:v1, u0:u1] = level.reshape(v1 - v0, u1 - u0)
+            lab[v0:v1, u0:u1] = label.reshape(v1 - v0, u1 - u0)
+
+            # Edge pixels: any 8-neighbour with another label. Re-render with s x s rays.
+            s = noise.supersample
+            if s > 1:
+                sub_lab = lab[v0:v1, u0:u1].astype(np.float32)
+                kernel = np.ones((3, 3), np.uint8)
+                edge = cv2.dilate(sub_lab, kernel) != cv2.erode(sub_lab, kernel)
+                ev, eu = np.nonzero(edge)
+                if ev.size:
+                    ev, eu = ev + v0, eu + u0
+                    offs = (np.arange(s) + 0.5) / s - 0.5
+                    ou, ov = np.meshgrid(offs, offs)
+                    sub = np.column_stack(
+                        [
+                            (eu[:, None] + ou.ravel()[None, :]).ravel(),
+                            (ev[:, None] + ov.ravel()[None, :]).ravel(),
+                        ]
+                    )
+                    sub_level, _ = _shade(scene, origin, cam.rays(sub) @ R.T)
+                    img[ev, eu] = sub_level.reshape(-1, s * s).mean(axis=1)
+
+        gx, gy = scene.ambient_gradient
+        if gx or gy:
+            uu, vv = np.meshgrid(np.arange(w) / w - 0.5, np.arange(h) / h - 0.5)
+            img = img + gx * uu + gy * vv
+        if noise.blur_sigma > 0.0:
+            img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
+        rng = np.random.default_rng() if rng is None else rng
+        # Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise together.
+        var = np.zeros_like(img)
+        if noise.electrons_per_level > 0.0:
+            var += np.clip(img, 0.0, None) / noise.electrons_per_level
+        if noise.read_noise > 0.0:
+            var += noise.read_noise**2
+        if noise.electrons_per_level > 0.0 or noise.read_noise > 0.0:
+            img = img + np.sqrt(var) * rng.standard_normal(img.shape)
+        return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
 def render(
     camera: CameraModel,
     T_world_camera: Transform,
@@ -209,52 +308,9 @@ def render(
         rng: random generator for the noise (seed it for reproducible images).
 
     Returns:
-        (height, width) uint8 image.
+        (height, width) uint8 image. For many frames of one camera keep a :class:`Renderer`.
     """
-    noise = SensorNoise() if noise is None else noise
-    if noise.supersample < 1:
-        raise RenderError('supersample must be >= 1')
-    h, w = camera.height, camera.width
-    origin = T_world_camera.t
-    R = T_world_camera.R
-    uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-    pixels = np.column_stack([uu.ravel(), vv.ravel()])
-    dirs = camera.rays(pixels) @ R.T
-    level, label = _shade(scene, origin, dirs)
-    img: Array = level.reshape(h, w)
-    lab = label.reshape(h, w)
-
-    # Edge pixels: any 8-neighbour with another label. Re-render them with s x s rays.
-    s = noise.supersample
-    if s > 1:
-        lab_f = lab.astype(np.float32)
-        kernel = np.ones((3, 3), np.uint8)
-        edge = cv2.dilate(lab_f, kernel) != cv2.erode(lab_f, kernel)
-        ev, eu = np.nonzero(edge)
-        if ev.size:
-            offs = (np.arange(s) + 0.5) / s - 0.5
-            ou, ov = np.meshgrid(offs, offs)
-            sub = np.column_stack(
-                [
-                    (eu[:, None] + ou.ravel()[None, :]).ravel(),
-                    (ev[:, None] + ov.ravel()[None, :]).ravel(),
-                ]
-            )
-            sub_level, _ = _shade(scene, origin, camera.rays(sub) @ R.T)
-            img[ev, eu] = sub_level.reshape(-1, s * s).mean(axis=1)
-
-    gx, gy = scene.ambient_gradient
-    if gx or gy:
-        img = img + gx * (uu / w - 0.5) + gy * (vv / h - 0.5)
-    if noise.blur_sigma > 0.0:
-        img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
-    rng = np.random.default_rng() if rng is None else rng
-    if noise.electrons_per_level > 0.0:
-        electrons = np.clip(img, 0.0, None) * noise.electrons_per_level
-        img = np.asarray(rng.poisson(electrons), dtype=np.float64) / noise.electrons_per_level
-    if noise.read_noise > 0.0:
-        img = img + rng.normal(0.0, noise.read_noise, img.shape)
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    return Renderer(camera).render(T_world_camera, scene, noise, rng)
 
 
 def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> Transform:

@@ -16,7 +16,7 @@ from activesurv_imaging.camera_model import CameraModel
 from activesurv_imaging.errors import RenderError
 from activesurv_imaging.geometry import Transform, unit
 from activesurv_imaging.mount import CameraMount
-from activesurv_imaging.render import Plate, Scene, SensorNoise, render
+from activesurv_imaging.render import Plate, Renderer, Scene, SensorNoise
 from activesurv_imaging.timeseries import TimeSeries
 
 
@@ -62,6 +62,7 @@ class SimulatedCamera:
         seed: int = 0,
     ) -> None:
         self.camera = camera
+        self.renderer = Renderer(camera)
         self.mount = mount
         self.geometry = ObjectGeometry() if geometry is None else geometry
         self.noise = SensorNoise() if noise is None else noise
@@ -98,10 +99,6 @@ class SimulatedCamera:
         state = self.objects.at(t, hold)
         if state is None:
             raise RenderError(f'no object state near t={t:.3f} s')
-        return render(
-            self.camera,
-            self.camera_pose(t, hold),
-            object_scene(state, self.geometry),
-            self.noise,
-            self.rng,
+        return self.renderer.render(
+            self.camera_pose(t, hold), object_scene(state, self.geometry), self.noise, self.rng
         )

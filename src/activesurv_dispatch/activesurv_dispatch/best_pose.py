@@ -31,10 +31,18 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Target:
-    """A predicted demand point: marker centre and unit normal (world)."""
+    """A predicted demand point: marker centre, unit normal (world), and position uncertainty.
+
+    ``sigma`` (m) widens the in-view margin: a camera must keep the marker in view even if the
+    target is ``VIEW_SIGMAS`` standard deviations off its prediction.
+    """
 
     position: Array
     normal: Array
+    sigma: float = 0.0
+
+
+VIEW_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -81,7 +89,7 @@ def view_batch(
     z = np.maximum(p[:, 2], 1e-9)
     u = cam.fx * p[:, 0] / z + cam.cx
     v = cam.fy * p[:, 1] / z + cam.cy
-    r_px = cam.fx * radius / z + margin_px
+    r_px = cam.fx * (radius + VIEW_SIGMAS * target.sigma) / z + margin_px
     in_view = (
         (p[:, 2] > radius)
         & (u - r_px >= 0)

@@ -3,15 +3,15 @@
 Given the demand points expected along a rough prior trajectory, each camera gets the initial
 configuration that maximises its summed visibility over them. For demand j that visibility is the
 best the camera can *achieve* from that initial configuration in the time ``t_j - start``, with
-its motion class's speeds. So a static camera gets the fixed pose that sees the most demand
-points best. A slow camera is placed where it can keep up, ahead of the target (the paper's
-Fig. 8-9 observation). A fast camera is placed near where it is needed first. Cameras are placed
-independently (their mounts differ, and the dispatcher shares them out online), except the
-static system. Its cameras can never move, so they are placed together: a coordinate ascent
-maximises the coverage of the demands (each demand's first view counts most, its k-th least,
-more count nothing), then the summed visibility.
-This is the paper's "the target can be imaged by at least three cameras at any demand point",
-as far as the optics allow (README, "Choices").
+its motion class's speeds, plus a quarter of what it sees of the path from the initial pose
+itself (the tie-break for fast cameras, which can reach almost anything in time). A slow
+camera is placed where it can keep up, ahead of the target (the paper's Fig. 8-9
+observation); a fast camera near where it is needed first. Cameras are placed independently
+(their mounts differ, and the dispatcher shares them out online), except the static system.
+Its cameras can never move, so they are placed together: a coordinate ascent maximises the
+coverage of the demands (each demand's first view counts most, its k-th least, more count
+nothing), then the summed visibility. This is the paper's "the target can be imaged by at least
+three cameras at any demand point", as far as the optics allow (README, "Choices").
 
 The search is a grid over the joint space, then a finer grid around the best cell.
 """
@@ -24,13 +24,14 @@ from itertools import permutations
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_dispatch.best_pose import best_achievable_pose, view_batch
+from activesurv_dispatch.best_pose import aim_yaw, best_achievable_pose, view_batch
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Sensor, Setup
 from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
+ALREADY_WEIGHT = 0.25
 
 
 def _grid(
@@ -49,6 +50,20 @@ def _grid(
     return np.column_stack([m.ravel() for m in mesh])
 
 
+def _with_aimed(sensor: Sensor, cands: Array, expected: Sequence[Demand]) -> Array:
+    """Add, for every linear position, the yaws aimed at the path's first, middle and last
+    demand points (a coarse yaw grid misses a 7-degree field of view)."""
+    lin = np.unique(cands[:, 0]) if sensor.has_linear else np.zeros(1)
+    picks = [expected[0], expected[len(expected) // 2], expected[-1]]
+    extra = []
+    for d in picks:
+        yaw = aim_yaw(sensor, lin, d.target)
+        lim = sensor.limits[-1]
+        yaw = np.clip(yaw, lim.min_position, lim.max_position)
+        extra.append(np.column_stack([lin, yaw]) if sensor.has_linear else yaw[:, None])
+    return np.vstack([cands, *extra])
+
+
 def _scores(
     sensor: Sensor,
     cands: Array,
@@ -62,7 +77,7 @@ def _scores(
         for d in expected:
             total += view_batch(sensor, cands, d.target, radius, model)[0]
         return total
-    return np.array(
+    achievable = np.array(
         [
             sum(
                 best_achievable_pose(
@@ -73,6 +88,12 @@ def _scores(
             for q in cands
         ]
     )
+    # What the initial pose already sees of the expected path breaks the ties of a fast camera,
+    # which can reach almost anything in time: prefer watching the path over an arbitrary pose.
+    already = np.zeros(len(cands))
+    for d in expected:
+        already += view_batch(sensor, cands, d.target, radius, model)[0]
+    return np.asarray(achievable + ALREADY_WEIGHT * already, dtype=np.float64)
 
 
 def _static_coverage(
@@ -155,7 +176,7 @@ def initial_poses(
     radius = setup.marker_radius
     for s in setup.sensors:
         coarse = (31, 121) if not s.moves else (11, 25)
-        cands = _grid(s, *coarse)
+        cands = _with_aimed(s, _grid(s, *coarse), expected)
         scores = _scores(s, cands, expected, start, model, radius)
         best = cands[int(np.argmax(scores))]
         step = np.array(

@@ -21,7 +21,11 @@ On every new rolling horizon, :meth:`DispatchPlanner.plan`:
    are re-planned on every horizon.
 3. **Replanning** (II-D). When the new prediction of an assigned demand leaves the box
    ``|delta| <= rho * sigma`` (x, y, z) around the prediction used at assignment, the desired
-   poses of its cameras are recomputed, and that prediction becomes the new reference.
+   poses of its cameras are recomputed, and that prediction becomes the new reference. Ours in
+   addition: also when an assigned camera's desired pose would not keep the new prediction in
+   view. An assignment made early in a track has a large sigma, so the paper's box alone lets
+   the cameras stay aimed at a stale prediction, and a 7-degree field of view does not forgive
+   that.
 
 Cameras with nothing to do keep their poses (idle). A static system only re-ranks; its poses are
 its initial ones.
@@ -73,7 +77,9 @@ class Demand:
 
     @property
     def target(self) -> Target:
-        return Target(self.position, self.normal)
+        """The target with its lateral (x, y) prediction uncertainty."""
+        c = self.covariance
+        return Target(self.position, self.normal, float(np.sqrt(max(c[0, 0], c[1, 1], 0.0))))
 
     def sigma(self) -> Array:
         return np.sqrt(np.maximum(np.diag(self.covariance)[:3], 0.0))
@@ -252,9 +258,24 @@ class DispatchPlanner:
         return out
 
     # -- planning ----------------------------------------------------------------------------
-    def _replan_needed(self, reference: Demand, new: Demand) -> bool:
-        delta = np.abs(new.position - reference.position)
-        return bool(np.any(delta > self.rho * reference.sigma()))
+    def _replan_needed(self, frozen: _Frozen, new: Demand, alive: list[str]) -> bool:
+        delta = np.abs(new.position - frozen.reference.position)
+        if bool(np.any(delta > self.rho * frozen.reference.sigma())):
+            return True
+        for c in alive:
+            cand = frozen.desired.get(c)
+            if cand is None:
+                continue
+            inside = view_batch(
+                self.sensors[c],
+                cand.joints[None, :],
+                new.target,
+                self.setup.marker_radius,
+                self.model,
+            )[3][0]
+            if not inside:
+                return True
+        return False
 
     def plan(self, now: float, demands: Sequence[Demand], joints: dict[str, Array]) -> Plan:
         """Plan for the current horizon; ``joints`` holds each camera's current positions.
@@ -288,7 +309,7 @@ class DispatchPlanner:
                 self._frozen[first.index] = frozen
             else:
                 alive = [c for c in frozen.cameras if c in joints and c not in self.excluded]
-                if self._replan_needed(frozen.reference, first):
+                if self._replan_needed(frozen, first, alive):
                     dt = first.time - now - self.settle_time
                     for c in alive:
                         frozen.desired[c] = best_achievable_pose(

@@ -148,14 +148,26 @@ class Scene:
 
 
 def _shade(
-    scene: Scene, origin: Array, dirs: Array
+    scene: Scene,
+    origin: Array,
+    dirs: Array,
+    only: int | None = None,
+    best_t: Array | None = None,
+    level: Array | None = None,
+    label: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Grey level and a label (which plate and which part of its pattern) for each ray."""
+    """Grey level and a label (which plate and which part of its pattern) for each ray.
+
+    With ``only``, just that plate is tested, against (and updating) the given depth, level and
+    label buffers.
+    """
     n_rays = dirs.shape[0]
-    best_t = np.full(n_rays, np.inf)
-    level = np.full(n_rays, scene.background)
-    label = np.zeros(n_rays, dtype=np.int64)
+    best_t = np.full(n_rays, np.inf) if best_t is None else best_t
+    level = np.full(n_rays, scene.background) if level is None else level
+    label = np.zeros(n_rays, dtype=np.int64) if label is None else label
     for p_idx, plate in enumerate(scene.plates):
+        if only is not None and p_idx != only:
+            continue
         denom = dirs @ plate.normal
         with np.errstate(divide='ignore', invalid='ignore'):
             t = ((plate.center - origin) @ plate.normal) / denom
@@ -241,16 +253,28 @@ class Renderer:
         origin, R = T_world_camera.t, T_world_camera.R
         img: Array = np.full((h, w), scene.background, dtype=np.float64)
         lab = np.zeros((h, w), dtype=np.int64)
-        boxes = [b for b in (self._plate_box(pl, T_world_camera) for pl in scene.plates) if b]
+        boxes = [
+            (i, b)
+            for i, b in enumerate(self._plate_box(pl, T_world_camera) for pl in scene.plates)
+            if b
+        ]
         if boxes:
-            u0 = min(b[0] for b in boxes)
-            u1 = max(b[1] for b in boxes)
-            v0 = min(b[2] for b in boxes)
-            v1 = max(b[3] for b in boxes)
-            dirs = self._rays[v0:v1, u0:u1].reshape(-1, 3) @ R.T
-            level, label = _shade(scene, origin, dirs)
-            img[v0:v1, u0:u1] = level.reshape(v1 - v0, u1 - u0)
-            lab[v0:v1, u0:u1] = label.reshape(v1 - v0, u1 - u0)
+            u0 = min(b[0] for _, b in boxes)
+            u1 = max(b[1] for _, b in boxes)
+            v0 = min(b[2] for _, b in boxes)
+            v1 = max(b[3] for _, b in boxes)
+            depth = np.full((h, w), np.inf)
+            for i, (bu0, bu1, bv0, bv1) in boxes:
+                # Each plate is tested only inside its own box; a depth buffer resolves overlaps.
+                dirs = self._rays[bv0:bv1, bu0:bu1].reshape(-1, 3) @ R.T
+                shape = (bv1 - bv0, bu1 - bu0)
+                d_sub = depth[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                l_sub = img[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                k_sub = lab[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                _shade(scene, origin, dirs, i, d_sub, l_sub, k_sub)
+                depth[bv0:bv1, bu0:bu1] = d_sub.reshape(shape)
+                img[bv0:bv1, bu0:bu1] = l_sub.reshape(shape)
+                lab[bv0:bv1, bu0:bu1] = k_sub.reshape(shape)
 
             # Edge pixels: any 8-neighbour with another label. Re-render with s x s rays.
             s = noise.supersample
@@ -279,14 +303,15 @@ class Renderer:
         if noise.blur_sigma > 0.0:
             img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
         rng = np.random.default_rng() if rng is None else rng
-        # Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise together.
-        var = np.zeros_like(img)
-        if noise.electrons_per_level > 0.0:
-            var += np.clip(img, 0.0, None) / noise.electrons_per_level
-        if noise.read_noise > 0.0:
-            var += noise.read_noise**2
+        # Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise together,
+        # in float32: a grey level needs no more.
         if noise.electrons_per_level > 0.0 or noise.read_noise > 0.0:
-            img = img + np.sqrt(var) * rng.standard_normal(img.shape)
+            img32 = img.astype(np.float32)
+            var = np.full_like(img32, noise.read_noise**2)
+            if noise.electrons_per_level > 0.0:
+                var += np.clip(img32, 0.0, None) * np.float32(1.0 / noise.electrons_per_level)
+            img32 += np.sqrt(var) * rng.standard_normal(img32.shape, dtype=np.float32)
+            return np.clip(np.rint(img32), 0, 255).astype(np.uint8)
         return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 

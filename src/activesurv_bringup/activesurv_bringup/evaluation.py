@@ -1,0 +1,153 @@
+"""Evaluation of a run (paper Section IV-B): per demand instant, visibility and pose errors.
+
+* Position error, eq. 9: the Euclidean distance between the true marker centre (from the xy
+  table) and the fused estimate.
+* Orientation error, eq. 10: ``acos(n_t . n_e)``, the angle between true and estimated normals.
+* Visibility, eq. 2: ``v_f`` of the assigned cameras that really imaged the marker (their
+  observation succeeded), with R from the sensor model at the distance and bearing they really
+  had to the true target at the demand instant; a camera that did not see the marker contributes
+  nothing. This is the "observed visibility" of the paper's Figs. 10-11.
+
+``results.json`` follows the contract in README ("Experiments"): metres and radians.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
+from activesurv_dispatch.sensors import Setup
+from activesurv_dispatch.visibility import fused_visibility
+from activesurv_imaging.sensor_model import SensorModel
+
+Array = NDArray[np.float64]
+
+
+def position_error(estimate: ArrayLike, truth: ArrayLike) -> float:
+    """Eq. 9."""
+    return float(np.linalg.norm(np.asarray(estimate, float) - np.asarray(truth, float)))
+
+
+def orientation_error(estimate: ArrayLike, truth: ArrayLike) -> float:
+    """Eq. 10 (radians), robust to rounding: both normals are normalised first."""
+    a = np.asarray(estimate, float)
+    b = np.asarray(truth, float)
+    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def observed_visibility(
+    setup: Setup,
+    model: SensorModel,
+    poses: dict[str, Array],
+    position: ArrayLike,
+    normal: ArrayLike,
+) -> float:
+    """v_f (eq. 2) of the cameras at ``poses`` (those that imaged the marker), true target."""
+    target = Target(np.asarray(position, float), np.asarray(normal, float))
+    Rs = []
+    for cid, q in poses.items():
+        s = setup.sensor(cid)
+        qq = np.asarray(q, float)[None, :]
+        _, d, b, _ = view_batch(s, qq, target, setup.marker_radius, model)
+        _, R = camera_frames(s, qq)
+        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
+    return fused_visibility(Rs)
+
+
+@dataclass
+class DemandRecord:
+    """What happened at one demand instant."""
+
+    index: int
+    t: float
+    true_position: Array
+    true_normal: Array
+    estimated_position: Array | None = None
+    estimated_normal: Array | None = None
+    visibility: float = 0.0
+    cameras: list[str] = field(default_factory=list)
+    faulty: list[str] = field(default_factory=list)
+    assigned: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    status: str = 'not_captured'
+    reason: str = ''
+    latency: float | None = None
+
+    @property
+    def position_error(self) -> float | None:
+        if self.estimated_position is None:
+            return None
+        return position_error(self.estimated_position, self.true_position)
+
+    @property
+    def orientation_error(self) -> float | None:
+        if self.estimated_normal is None:
+            return None
+        return orientation_error(self.estimated_normal, self.true_normal)
+
+    def to_json(self) -> dict[str, Any]:
+        def vec(v: Array | None) -> list[float] | None:
+            return None if v is None else [float(x) for x in v]
+
+        return {
+            'index': self.index,
+            't': float(self.t),
+            'true_position': vec(self.true_position),
+            'estimated_position': vec(self.estimated_position),
+            'true_normal': vec(self.true_normal),
+            'estimated_normal': vec(self.estimated_normal),
+            'position_error': self.position_error,
+            'orientation_error': self.orientation_error,
+            'visibility': float(self.visibility),
+            'cameras': list(self.cameras),
+            'faulty': list(self.faulty),
+            'assigned': list(self.assigned),
+            'missing': list(self.missing),
+            'status': self.status,
+            'reason': self.reason,
+            'latency': self.latency,
+        }
+
+
+def results_document(
+    set_name: str,
+    system: str,
+    records: Sequence[DemandRecord],
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    doc: dict[str, Any] = {
+        'set': set_name,
+        'system': system,
+        'demands': [r.to_json() for r in sorted(records, key=lambda r: r.index)],
+    }
+    if extra:
+        doc.update(extra)
+    return doc
+
+
+def write_results(path: Path, doc: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=2) + '\n')
+
+
+def summary(doc: dict[str, Any]) -> dict[str, float]:
+    """Mean visibility, median errors, and how many demands got an estimate."""
+    rows = doc['demands']
+    pos = [r['position_error'] for r in rows if r['position_error'] is not None]
+    ori = [r['orientation_error'] for r in rows if r['orientation_error'] is not None]
+    return {
+        'mean_visibility': float(np.mean([r['visibility'] for r in rows])) if rows else 0.0,
+        'median_position_error': float(np.median(pos)) if pos else math.nan,
+        'median_orientation_error': float(np.median(ori)) if ori else math.nan,
+        'estimates': float(len(pos)),
+        'demands': float(len(rows)),
+    }

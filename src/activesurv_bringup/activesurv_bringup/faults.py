@@ -1,0 +1,55 @@
+"""Camera faults for reliability experiments: ``--fault CAMERA:KIND[:MAGNITUDE]``.
+
+Kinds: ``bias`` (metres added to the camera's reported x, world frame), ``noise`` (metres of extra
+Gaussian position noise, std), ``frozen`` (the camera keeps delivering its first image: a stuck
+frame), ``dead`` (the camera's nodes are not running: no stage state, no observations), ``flip``
+(the imager picks the wrong one of the two circle poses). CAMERA is cam1 ... cam4.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from activesurv_bringup.errors import ConfigError
+
+KINDS = ('bias', 'noise', 'frozen', 'dead', 'flip')
+NEEDS_MAGNITUDE = ('bias', 'noise')
+
+
+@dataclass(frozen=True)
+class Fault:
+    camera: str
+    kind: str
+    magnitude: float = 0.0
+
+
+def parse_fault(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', 'cam4')) -> Fault:
+    """Parse ``CAMERA:KIND[:MAGNITUDE]``.
+
+    Raises:
+        ConfigError: with what is wrong and what is allowed.
+    """
+    parts = text.split(':')
+    if len(parts) not in (2, 3):
+        raise ConfigError(
+            f'fault {text!r}: expected CAMERA:KIND[:MAGNITUDE], e.g. cam2:bias:0.002'
+        )
+    cam, kind = parts[0], parts[1]
+    if cam not in cameras:
+        raise ConfigError(f'fault {text!r}: unknown camera {cam!r}; cameras are {list(cameras)}')
+    if kind not in KINDS:
+        raise ConfigError(f'fault {text!r}: unknown kind {kind!r}; kinds are {list(KINDS)}')
+    magnitude = 0.0
+    if len(parts) == 3:
+        try:
+            magnitude = float(parts[2])
+        except ValueError as exc:
+            raise ConfigError(f'fault {text!r}: magnitude {parts[2]!r} is not a number') from exc
+        if not math.isfinite(magnitude):
+            raise ConfigError(f'fault {text!r}: magnitude must be finite')
+    if kind in NEEDS_MAGNITUDE and len(parts) != 3:
+        raise ConfigError(f'fault {text!r}: {kind} needs a magnitude in metres')
+    if kind == 'noise' and magnitude < 0:
+        raise ConfigError(f'fault {text!r}: noise std must be >= 0')
+    return Fault(cam, kind, magnitude)

@@ -26,6 +26,7 @@ setup(
     entry_points={
         'console_scripts': [
             'activesurv = activesurv_bringup.cli:main',
+            'recorder = activesurv_bringup.recorder_node:main',
         ],
     },
 )

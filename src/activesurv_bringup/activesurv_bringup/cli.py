@@ -1,27 +1,127 @@
-"""The ``activesurv`` command: demo, experiments, reports and commissioning tools."""
+"""The ``activesurv`` command: experiments, reports, replay, commissioning tools, and the demo.
+
+::
+
+    activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
+        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
+        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--rtf X] [--image-rate HZ]
+    activesurv report RUN_DIR_OR_BAG
+    activesurv demo [--out DIR] [--mode {graph,lockstep}]
+    activesurv stages {probe,move,emulate} ...
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+import time
 from pathlib import Path
 
 from activesurv_bringup.errors import BringupError
 
+SYSTEMS = ('static', 'medium', 'fast')
+
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog='activesurv', description='Active-vision multi-camera surveillance (ROS 2 Jazzy).'
+        prog='activesurv',
+        description='Active-vision multi-camera surveillance (ROS 2 Jazzy).',
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__,
     )
     sub = parser.add_subparsers(dest='command', required=True)
-    demo = sub.add_parser('demo', help='run the main job: the node graph and its summary')
+
+    exp = sub.add_parser('experiment', help="run one of the paper's experiments")
+    exp.add_argument('--set', dest='set_name', required=True, choices=('A', 'B'))
+    exp.add_argument('--system', required=True, choices=SYSTEMS)
+    exp.add_argument('--out', type=Path, required=True, help='output directory')
+    exp.add_argument('--seed', type=int, default=0)
+    exp.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
+    exp.add_argument('--trajectory', help='CSV t,x,y replacing the object path')
+    exp.add_argument('--expect', help='parabolic, diagonal or a CSV: the path placement assumes')
+    exp.add_argument(
+        '--fault',
+        action='append',
+        default=[],
+        help='CAMERA:KIND[:MAGNITUDE]; kinds: bias, noise, frozen, dead, flip',
+    )
+    exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
+    exp.add_argument(
+        '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
+    )
+
+    rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
+    rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
+
+    demo = sub.add_parser('demo', help='the main job: all six experiments and the report')
     demo.add_argument('--out', type=Path, default=Path('runs/demo'), help='output directory')
-    demo.add_argument('--seed', type=int, default=1, help='random seed')
+    demo.add_argument('--seed', type=int, default=1)
+    demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
+    demo.add_argument('--rtf', type=float, default=0.5)
+
     stages = sub.add_parser('stages', help='commissioning of stage controllers (probe, move)')
     from activesurv_stages.cli import add_arguments
 
     add_arguments(stages.add_subparsers(dest='stages_command', required=True))
     return parser
+
+
+def run_experiment(
+    args: argparse.Namespace, out: Path, set_name: str, system: str, seed: int
+) -> dict[str, object]:
+    from activesurv_bringup.evaluation import results_document, write_results
+    from activesurv_bringup.experiment import load_experiment
+    from activesurv_bringup.faults import parse_fault
+
+    faults = [parse_fault(f) for f in getattr(args, 'fault', [])]
+    exp = load_experiment(
+        set_name, system, seed, getattr(args, 'trajectory', None), getattr(args, 'expect', None)
+    )
+    started = time.monotonic()
+    if args.mode == 'lockstep':
+        from activesurv_bringup.lockstep import run_lockstep
+
+        def progress(j: int, m: int, t: float) -> None:
+            print(
+                f'  Set {set_name} {system}: demand {j} of {m}, simulated time {t:.1f} s',
+                flush=True,
+            )
+
+        records = run_lockstep(exp, faults, progress)
+        doc = results_document(
+            set_name,
+            system,
+            records,
+            {
+                'seed': seed,
+                'mode': 'lockstep',
+                'faults': [f'{f.camera}:{f.kind}:{f.magnitude:g}' for f in faults],
+            },
+        )
+        write_results(out / 'results.json', doc)
+    else:
+        from activesurv_bringup.graph import run_graph
+        from activesurv_bringup.report import load_run
+
+        def say(text: str) -> None:
+            print(f'  Set {set_name} {system}: {text}', flush=True)
+
+        run_graph(
+            exp,
+            out,
+            rtf=args.rtf,
+            image_rate=getattr(args, 'image_rate', 2.0),
+            faults=faults,
+            progress=say,
+        )
+        doc = load_run(out)
+    print(
+        f'  Set {set_name} {system}: done in {time.monotonic() - started:.1f} s -> '
+        f'{out / "results.json"}',
+        flush=True,
+    )
+    return doc
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,13 +131,42 @@ def main(argv: list[str] | None = None) -> int:
 
         return run(args)
     try:
-        if args.command == 'demo':
-            from activesurv_bringup.demo import print_summary, run_demo
-
-            print_summary(run_demo(args.out, seed=args.seed))
-            print(f'\nresults: {args.out / "results.json"}')
+        if args.command == 'experiment':
+            run_experiment(args, args.out, args.set_name, args.system, args.seed)
             return 0
-    except (BringupError, TimeoutError, OSError) as exc:
+        if args.command == 'report':
+            from activesurv_bringup.report import report, summary_table
+
+            docs, path = report(args.path)
+            print(summary_table(docs))
+            print(f'\nreport: {path}')
+            return 0
+        if args.command == 'demo':
+            from activesurv_bringup.report import summary_table, write_report
+
+            docs = []
+            started = time.monotonic()
+            for set_name in ('A', 'B'):
+                for system in SYSTEMS:
+                    out = args.out / f'{set_name}_{system}'
+                    if out.exists():
+                        import shutil
+
+                        shutil.rmtree(out)
+                    print(
+                        f'activesurv demo: Set {set_name}, {system} system ({args.mode})',
+                        flush=True,
+                    )
+                    docs.append(run_experiment(args, out, set_name, system, args.seed))
+            path = write_report(docs, args.out)
+            print(f'\nactivesurv demo: six runs in {time.monotonic() - started:.0f} s\n')
+            print(summary_table(docs))
+            print(f'\nreport: {path}\nresults: {args.out}/*/results.json')
+            (args.out / 'demo.json').write_text(
+                json.dumps({'seconds': time.monotonic() - started, 'mode': args.mode}, indent=2)
+            )
+            return 0
+    except (BringupError, OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
         return 1
     return 2

@@ -13,3 +13,7 @@ class NodeDiedError(BringupError):
 
 class ConfigError(BringupError, ValueError):
     """A configuration file or command-line value is invalid."""
+
+
+class BagError(BringupError):
+    """A bag cannot be written or read (missing, truncated, corrupt)."""

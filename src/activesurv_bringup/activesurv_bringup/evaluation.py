@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
 from activesurv_dispatch.sensors import Setup
 from activesurv_dispatch.visibility import fused_visibility
+from activesurv_imaging.geometry import Transform
 from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
@@ -42,6 +43,22 @@ def orientation_error(estimate: ArrayLike, truth: ArrayLike) -> float:
     b = np.asarray(truth, float)
     c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
     return math.acos(min(1.0, max(-1.0, c)))
+
+
+def visibility_from_transforms(
+    model: SensorModel, cameras: Sequence[Transform], position: ArrayLike, normal: ArrayLike
+) -> float:
+    """v_f (eq. 2) of cameras at the given optical-frame poses for a target."""
+    c = np.asarray(position, float)
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    Rs = []
+    for T in cameras:
+        rel = T.t - c
+        d = float(np.linalg.norm(rel))
+        bearing = math.acos(max(-1.0, min(1.0, float(n @ rel) / d)))
+        Rs.append(model.world_covariance(d, bearing, T.R))
+    return fused_visibility(Rs)
 
 
 def observed_visibility(

@@ -45,7 +45,7 @@ def config_path() -> Path:
         return (
             Path(get_package_share_directory('activesurv_bringup')) / 'config' / 'experiments.yaml'
         )
-    except (ImportError, LookupError) as exc:
+    except (ImportError, LookupError, OSError) as exc:
         raise ConfigError('cannot find config/experiments.yaml') from exc
 
 
@@ -64,6 +64,7 @@ class Experiment:
     system: str
     seed: int
     config: dict[str, Any]
+    actual_spec: dict[str, Any]  # how the xy table is programmed: type, points or csv
     actual: TimedPath
     expected: TimedPath
     demand_times: tuple[float, ...]
@@ -175,7 +176,12 @@ def load_experiment(
         obj = cfg['object']
         paths = cfg['paths']
         chosen = cfg['sets'][set_name]
-        actual = from_csv(trajectory) if trajectory else _path(paths[chosen['actual']], obj)
+        actual_spec = (
+            {'type': 'csv', 'csv': str(Path(trajectory).resolve())}
+            if trajectory
+            else dict(paths[chosen['actual']])
+        )
+        actual = from_csv(trajectory) if trajectory else _path(actual_spec, obj)
         if expect is None:
             expected = _path(paths[chosen['expected']], obj)
         elif expect in paths:
@@ -193,7 +199,9 @@ def load_experiment(
         raise ConfigError(f'experiment config {path}: {exc!r}') from exc
     model = SensorModel.load()
     setup = load_setup(motion=system)
-    exp = Experiment(set_name, system, seed, cfg, actual, expected, times, setup, model)
+    exp = Experiment(
+        set_name, system, seed, cfg, actual_spec, actual, expected, times, setup, model
+    )
     placed = _cached_initial(
         setup,
         model,
@@ -202,5 +210,14 @@ def load_experiment(
         f'{system}|{json.dumps(cfg, sort_keys=True)}|{expect}',
     )
     return Experiment(
-        set_name, system, seed, cfg, actual, expected, times, setup.with_initial(placed), model
+        set_name,
+        system,
+        seed,
+        cfg,
+        actual_spec,
+        actual,
+        expected,
+        times,
+        setup.with_initial(placed),
+        model,
     )

@@ -33,7 +33,7 @@ from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
 from activesurv_imaging.camera_model import overhead_camera
 from activesurv_imaging.geometry import Transform, matrix_from_quaternion
-from activesurv_imaging.observation import ObservationStatus, observe_marker
+from activesurv_imaging.observation import ObservationStatus, observe_marker, perturb
 from activesurv_imaging.render import Renderer, SensorNoise
 from activesurv_imaging.sim_camera import ObjectGeometry, object_scene
 from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
@@ -213,9 +213,6 @@ def _capture(
             if cam.first_frame is None:
                 cam.first_frame = img
             img = cam.first_frame
-        prior = capture.demand.normal
-        if fault is not None and fault.kind == 'flip':
-            prior = -prior + 2 * (prior @ truth.side_normal) * truth.side_normal  # mirrored
         obs = observe_marker(
             img,
             sensor.camera,
@@ -225,8 +222,16 @@ def _capture(
             cid,
             capture.demand.index,
             tj,
-            prior,
+            capture.demand.normal,
+            fault is not None and fault.kind == 'flip',
         )
+        if fault is not None and fault.kind in ('bias', 'noise'):
+            obs = perturb(
+                obs,
+                fault.magnitude if fault.kind == 'bias' else 0.0,
+                fault.magnitude if fault.kind == 'noise' else 0.0,
+                rng,
+            )
         if (
             obs.status is not ObservationStatus.OK
             or obs.position is None
@@ -236,13 +241,8 @@ def _capture(
             answers[cid] = Answer(cid, Outcome.FAILED, None, f'{obs.status.name}: {obs.reason}')
             continue
         poses[cid] = q  # it imaged the marker: it counts for the observed visibility
-        position = obs.position.copy()
-        if fault is not None and fault.kind == 'bias':
-            position[0] += fault.magnitude
-        if fault is not None and fault.kind == 'noise':
-            position += rng.normal(0.0, fault.magnitude, 3)
         try:
-            reading = PoseReading.create(cid, position, obs.normal, obs.covariance)
+            reading = PoseReading.create(cid, obs.position, obs.normal, obs.covariance)
             answers[cid] = Answer(cid, Outcome.OK, reading)
         except InvalidReadingError as exc:
             answers[cid] = Answer(cid, Outcome.FAILED, None, str(exc))

@@ -168,6 +168,11 @@ def best_achievable_pose(
         j = int(np.argmax(vf))
         if vf[j] > vis[best]:
             return Candidate(qf[j], float(vf[j]), float(df[j]), float(bf[j]), bool(inf[j]))
+    if vis[best] <= 0.0 and target.sigma > 0.0:
+        # Nothing keeps the whole uncertainty region in view: still aim at the prediction.
+        return best_achievable_pose(
+            sensor, q0, Target(target.position, target.normal, 0.0), dt, model, radius, samples
+        )
     if vis[best] <= 0.0:
         # Nothing reachable sees it: keep the configuration nearest to the current one.
         j = int(np.argmin(np.abs(q[:, 0] - q0[0]))) if sensor.has_linear else 0

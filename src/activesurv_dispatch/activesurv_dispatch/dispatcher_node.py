@@ -117,7 +117,7 @@ class DispatcherNode(Node):
                 self._joint_callback(s.camera_id),
                 qos.SENSOR,
             )
-        self.create_timer(0.02, self._on_tick)
+        self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
         self.get_logger().info(
             f'{len(self.setup.sensors)} cameras, {self.setup.motion.name} system, '
@@ -215,6 +215,14 @@ class DispatcherNode(Node):
                     f'capture demand {capture.demand.index} at '
                     f'{capture.demand.time:.2f} s with {list(capture.cameras)}'
                 )
+        for missed in self.scheduler.missed(now, self.demands):
+            self._capture_pub.publish(capture_to_request(missed, now, self.frame_id))
+            self.planner.serviced(missed.demand.index)
+            self.counts['missed_demands'] += 1
+            self.get_logger().warning(
+                f'demand {missed.demand.index} passed with no camera '
+                'assigned; reported as a failure'
+            )
         for done in self.scheduler.newly_serviced(now):
             self.planner.serviced(done.demand.index)
             self.motion.holding.difference_update(done.cameras)

@@ -103,6 +103,17 @@ class CaptureScheduler:
         self.requested[j] = capture
         return capture
 
+    def missed(self, now: float, demands: dict[int, Demand]) -> list[Capture]:
+        """Demands whose instant passed without a capture request: requested now with no
+        cameras, so that fusion answers them with an explicit failure instead of silence."""
+        out = []
+        for j, d in sorted(demands.items()):
+            if j not in self.requested and d.time <= now:
+                c = Capture(d, ())
+                self.requested[j] = c
+                out.append(c)
+        return out
+
     def newly_serviced(self, now: float) -> list[Capture]:
         """Requested demands whose instant has passed (their data are being acquired)."""
         done = [

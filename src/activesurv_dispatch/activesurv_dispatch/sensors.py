@@ -153,7 +153,7 @@ def default_setup_path() -> Path:
             / 'config'
             / 'paper_setup.yaml'
         )
-    except (ImportError, LookupError) as exc:
+    except (ImportError, LookupError, OSError) as exc:
         raise DispatchConfigError('cannot find config/paper_setup.yaml') from exc
 
 

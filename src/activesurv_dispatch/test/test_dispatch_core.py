@@ -227,3 +227,11 @@ def test_moving_initial_poses_see_the_first_demands() -> None:
             for s in setup.sensors
         )
         assert seeing >= 3, motion
+
+
+def test_missed_demands_are_reported_not_dropped() -> None:
+    sched = CaptureScheduler(lead=0.3)
+    d0, d1 = _demand(0, 2.0, 0.25), _demand(1, 3.0, 0.26)
+    missed = sched.missed(2.5, {0: d0, 1: d1})
+    assert [(c.demand.index, c.cameras) for c in missed] == [(0, ())]
+    assert sched.missed(2.6, {0: d0, 1: d1}) == []  # once

@@ -183,6 +183,8 @@ def resolve(batch: DemandBatch, z: float = 3.0, max_faulty: int | None = None) -
             + '; '.join(f'{c} ({batch.answers[c].reason or "no reason"})' for c in failed)
         )
     if not readings:
+        if not batch.assigned and not batch.answers:
+            notes.append('no camera was assigned to this demand')
         reason = 'no usable observation' + (': ' + '; '.join(notes) if notes else '')
         return DemandResult(
             batch.index,

@@ -125,9 +125,9 @@ class FusionNode(Node):
     # -- callbacks: convert, call the core, publish -----------------------------------------
     def _on_request(self, msg: CaptureRequest) -> None:
         index, demand_time, cameras, prior = request_fields(msg)
-        if not math.isfinite(demand_time) or not cameras:
+        if not math.isfinite(demand_time):
             self._rejected += 1
-            self.get_logger().warning(f'ignored capture request {index}: no cameras or bad time')
+            self.get_logger().warning(f'ignored capture request {index}: bad demand instant')
             return
         if not self._collector.request(index, demand_time, cameras, self._now(), prior):
             self.get_logger().warning(f'capture request for demand {index} after it was answered')

@@ -185,3 +185,13 @@ def test_flush_answers_everything_open() -> None:
 def test_collector_rejects_bad_timeout() -> None:
     with pytest.raises(ValueError, match='timeout'):
         DemandCollector(timeout=float('nan'))
+
+
+def test_a_demand_without_cameras_gets_an_explicit_failure() -> None:
+    c = DemandCollector(timeout=0.5)
+    c.request(9, 3.0, (), now=3.0)
+    assert c.pop_ready(3.2) == []
+    (batch,) = c.pop_ready(3.5)
+    result = resolve(batch)
+    assert result.status is DemandStatus.NO_OBSERVATIONS
+    assert 'no camera was assigned' in result.reason

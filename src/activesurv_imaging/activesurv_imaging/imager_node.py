@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import sys
+import zlib
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
@@ -42,7 +43,13 @@ from activesurv_imaging.conversions import (
 from activesurv_imaging.errors import ImagingError
 from activesurv_imaging.geometry import Transform
 from activesurv_imaging.mount import CameraMount
-from activesurv_imaging.observation import Observation, ObservationStatus, failed, observe_marker
+from activesurv_imaging.observation import (
+    Observation,
+    ObservationStatus,
+    failed,
+    observe_marker,
+    perturb,
+)
 from activesurv_imaging.sensor_model import SensorModel
 from activesurv_imaging.timeseries import FrameBuffer, TimeSeries
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
@@ -75,6 +82,9 @@ class ImagerNode(Node):
         self.declare_parameter(
             'joint_hold', 0.2, d(description='s a stage state may be held beyond its stamp')
         )
+        self.declare_parameter('inject_bias_x', 0.0, d(description='fault: m added to world x'))
+        self.declare_parameter('inject_noise', 0.0, d(description='fault: extra position std'))
+        self.declare_parameter('inject_flip', False, d(description='fault: wrong circle pose'))
         declare_mount_parameters(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -91,6 +101,7 @@ class ImagerNode(Node):
         self.joints = TimeSeries(max(len(names), 1))
         self.pending: list[Pending] = []
         self.counts: Counter[str] = Counter()
+        self._rng = np.random.default_rng(zlib.crc32(self.camera_id.encode()))  # stable seed
 
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS
@@ -109,7 +120,7 @@ class ImagerNode(Node):
             self.create_subscription(
                 JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
             )
-        self.create_timer(0.02, self._on_tick)
+        self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -211,16 +222,21 @@ class ImagerNode(Node):
         except ImagingError as exc:
             return failed(self.camera_id, p.index, stamp, ObservationStatus.REJECTED, str(exc), T)
         prior = p.prior_normal if np.all(np.isfinite(p.prior_normal)) else None
-        return observe_marker(
+        g = self.get_parameter
+        obs = observe_marker(
             gray,
             self.camera,
             T,
-            float(self.get_parameter('marker_radius').value),
+            float(g('marker_radius').value),
             self.model,
             self.camera_id,
             p.index,
             stamp,
             prior,
+            bool(g('inject_flip').value),
+        )
+        return perturb(
+            obs, float(g('inject_bias_x').value), float(g('inject_noise').value), self._rng
         )
 
     def _on_tick(self) -> None:

@@ -7,7 +7,7 @@ joint states, and the sensor model's covariance at the measured distance and bea
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -73,8 +73,12 @@ def observe_marker(
     demand_index: int,
     stamp: float,
     prior_normal_world: ArrayLike | None = None,
+    wrong_solution: bool = False,
 ) -> Observation:
-    """Measure the marker in ``image`` and express it in the world frame with its covariance."""
+    """Measure the marker in ``image`` and express it in the world frame with its covariance.
+
+    ``wrong_solution`` takes the other of the two circle poses (fault injection).
+    """
     prior = None
     if prior_normal_world is not None:
         try:
@@ -102,7 +106,8 @@ def observe_marker(
             ellipse=m.ellipse,
             camera_pose=T_world_camera,
         )
-    c, n = m.pose.center, m.pose.normal
+    pose = m.poses[1 - m.chosen] if (wrong_solution and m.poses is not None) else m.pose
+    c, n = pose.center, pose.normal
     d = float(np.linalg.norm(c))
     bearing = math.acos(float(np.clip(n @ (-c / d), -1.0, 1.0)))
     return Observation(
@@ -121,3 +126,19 @@ def observe_marker(
         bearing=bearing,
         camera_pose=T_world_camera,
     )
+
+
+def perturb(
+    obs: Observation,
+    bias_x: float = 0.0,
+    noise: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> Observation:
+    """Fault injection: add ``bias_x`` (m, world x) and Gaussian noise (m std) to a position."""
+    if obs.position is None or (bias_x == 0.0 and noise <= 0.0):
+        return obs
+    p = obs.position.copy()
+    p[0] += bias_x
+    if noise > 0.0:
+        p += (rng or np.random.default_rng()).normal(0.0, noise, 3)
+    return replace(obs, position=p)

@@ -75,6 +75,9 @@ class SimCameraNode(Node):
         self.declare_parameter('electrons_per_level', 40.0, d(description='shot noise scale'))
         self.declare_parameter('read_noise', 1.0, d(description='grey levels'))
         self.declare_parameter('supersample', 8, d(description='edge supersampling'))
+        self.declare_parameter(
+            'inject_frozen', False, d(description='fault: keep sending the first frame')
+        )
         declare_mount_parameters(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -120,12 +123,13 @@ class SimCameraNode(Node):
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
         self._pending: set[float] = set()
-        self.create_timer(0.01, self._on_tick)
+        self.create_timer(0.02, self._on_tick)
         rate = float(g('frame_rate').value)
         self._last_streamed = -math.inf
         if rate > 0.0:
             self.create_timer(1.0 / rate, self._on_stream)
         self.frames_published = 0
+        self._frozen: Any = None
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for p in params:
@@ -170,6 +174,10 @@ class SimCameraNode(Node):
             self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
             return
         stamp = sec_to_time(t)
+        if bool(self.get_parameter('inject_frozen').value):
+            if self._frozen is None:
+                self._frozen = gray
+            gray = self._frozen  # a stuck camera: the same pixels, fresh stamps
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
         self.frames_published += 1

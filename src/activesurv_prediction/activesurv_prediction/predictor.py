@@ -16,7 +16,9 @@ stops and speed changes. Its default comes from the consistency benchmark (READM
 "Prediction").
 
 Outliers: a fix whose innovation has a squared Mahalanobis distance above ``gate``
-(chi-square, 2 dof) is rejected and does not touch the state. After ``max_rejections``
+(chi-square, 2 dof; 50 by default: a wrong detection is far out, while real fixes after a gap in
+the frame stream can be several sigma off a constant-acceleration extrapolation) is rejected and
+does not touch the state. After ``max_rejections``
 rejections in a row the object has really manoeuvred: the filter restarts at the newest fix
 with its velocity kept and the uncertainty inflated.
 """
@@ -90,7 +92,7 @@ class TargetPredictor:
         jerk_std: float = 2e-4,
         initial_velocity_std: float = 0.03,
         initial_acceleration_std: float = 0.01,
-        gate: float = 16.0,
+        gate: float = 50.0,
         max_rejections: int = 8,
     ) -> None:
         for name, value in (
@@ -135,16 +137,13 @@ class TargetPredictor:
         self.consecutive_rejections = 0
         self._rejected.clear()
 
-    def _start(self, t: float, xy: Array, velocity: Array | None = None) -> None:
+    def _start(
+        self, t: float, xy: Array, velocity: Array | None = None, velocity_std: float | None = None
+    ) -> None:
         v = np.zeros(2) if velocity is None else velocity
         self.kf.x = np.array([xy[0], v[0], 0.0, xy[1], v[1], 0.0]).reshape(6, 1)
-        p = np.diag(
-            [
-                self.measurement_std**2,
-                self.initial_velocity_std**2,
-                self.initial_acceleration_std**2,
-            ]
-        )
+        v_std = self.initial_velocity_std if velocity_std is None else velocity_std
+        p = np.diag([self.measurement_std**2, v_std**2, self.initial_acceleration_std**2])
         self.kf.P = np.zeros((6, 6))
         self.kf.P[:3, :3] = p
         self.kf.P[3:, 3:] = p
@@ -198,9 +197,13 @@ class TargetPredictor:
             if self.consecutive_rejections < self.max_rejections:
                 return UpdateResult(False, d2)
             # Not an outlier but a manoeuvre: restart from the rejected fixes.
+            # The rejected fixes agree with each other: restart from them, with the velocity
+            # they show and an uncertainty from the fix noise, not the cold-start prior.
             (t0, z0), (t1, z1) = self._rejected[0], self._rejected[-1]
-            v = (z1 - z0) / (t1 - t0) if t1 > t0 else None
-            self._start(t, z, v)
+            span = t1 - t0
+            v = (z1 - z0) / span if span > 0 else None
+            v_std = 2.0 * self.measurement_std / span if span > 0 else None
+            self._start(t, z, v, v_std)
             self.updates += 1
             return UpdateResult(True, d2, restarted=True)
         self.kf.update(z)

@@ -80,7 +80,7 @@ class PredictorNode(Node):
         self.declare_parameter('horizon', 5, d(description='demands on the rolling horizon (m)'))
         self.declare_parameter('measurement_std', 0.5e-3, d(description='overhead fix std (m)'))
         self.declare_parameter('jerk_std', 2e-4, d(description='process noise (m/s^3)'))
-        self.declare_parameter('gate', 16.0, d(description='chi-square outlier gate (2 dof)'))
+        self.declare_parameter('gate', 50.0, d(description='chi-square outlier gate (2 dof)'))
         self.declare_parameter('confirm_fixes', 10, d(description='fixes to confirm a track'))
         self.declare_parameter('lost_timeout', 1.0, d(description='unseen s before track loss'))
         self.declare_parameter(

@@ -43,7 +43,7 @@ class SimStageNode(Node):
         self.declare_parameter(
             'motion_class', 'fast', d(description=f'one of {sorted(MOTION_CLASSES)}')
         )
-        self.declare_parameter('publish_rate', 50.0, d(description='JointState rate (Hz)'))
+        self.declare_parameter('publish_rate', 25.0, d(description='JointState rate (Hz)'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         g = self.get_parameter

@@ -51,10 +51,16 @@ class XYTableNode(Node):
             d(description='side marker centre minus top marker centre (m)'),
         )
         self.declare_parameter('side_normal', [0.0, -1.0, 0.0], d(description='side normal'))
-        self.declare_parameter('publish_rate', 100.0, d(description='object_state rate (Hz)'))
+        self.declare_parameter('publish_rate', 50.0, d(description='object_state rate (Hz)'))
         self.declare_parameter('publish_clock', True, d(description='own the simulated /clock'))
         self.declare_parameter('real_time_factor', 1.0, d(description='sim s per wall s'))
         self.declare_parameter('frame_id', 'world', d(description='frame of object_state'))
+        self.declare_parameter(
+            'wait_for_subscribers',
+            0,
+            d(description='hold simulated time at 0 until object_state has this many subscribers'),
+        )
+        self.declare_parameter('wait_timeout', 30.0, d(description='s to wait for them at most'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         g = self.get_parameter
@@ -76,7 +82,10 @@ class XYTableNode(Node):
         self.publish_clock = bool(g('publish_clock').value)
         self.rtf = float(g('real_time_factor').value)
         self.frame_id = str(g('frame_id').value)
-        self._wall0 = time.monotonic()
+        self._wall0: float | None = None  # simulated time starts when everyone listens
+        self._created = time.monotonic()
+        self._wait_for = int(g('wait_for_subscribers').value)
+        self._wait_timeout = float(g('wait_timeout').value)
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
         )
@@ -103,10 +112,32 @@ class XYTableNode(Node):
 
     def sim_time(self) -> float:
         if self.publish_clock:
+            if self._wall0 is None:
+                return 0.0
             return (time.monotonic() - self._wall0) * self.rtf
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _ready(self) -> bool:
+        if self._wall0 is not None:
+            return True
+        listeners = self._pub.get_subscription_count()
+        waited = time.monotonic() - self._created
+        if listeners >= self._wait_for or waited > self._wait_timeout:
+            if listeners < self._wait_for:
+                self.get_logger().warning(
+                    f'starting with {listeners} of {self._wait_for} object_state subscribers '
+                    f'after {waited:.0f} s'
+                )
+            self._wall0 = time.monotonic()
+            self.get_logger().info('simulated time starts')
+            return True
+        return False
+
     def _on_tick(self) -> None:
+        if self.publish_clock and not self._ready():
+            if self._clock_pub is not None:
+                self._clock_pub.publish(Clock(clock=sec_to_time(0.0)))
+            return
         t = self.sim_time()
         stamp = sec_to_time(t)
         if self._clock_pub is not None:

@@ -1,0 +1,321 @@
+"""Graph mode: one experiment run as the real node graph over DDS, recorded to a bag.
+
+Like a launch file, :func:`graph_specs` lists every node with its parameters; :func:`run_graph`
+starts them as processes, the recorder first and the xy table (which owns ``/clock``) last, once
+every node has joined the graph, so simulated time starts only when nothing can miss the object
+entering. A monitor node in this process shows progress (demand j of m, simulated time) and
+ends the run when every demand has an answer or time runs out. The nodes are then stopped in
+reverse order, the recorder last.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from activesurv_bringup.errors import NodeDiedError
+from activesurv_bringup.experiment import Experiment
+from activesurv_bringup.faults import Fault
+from activesurv_bringup.launcher import Launcher, NodeSpec
+from activesurv_dispatch.sensors import Sensor
+
+Progress = Callable[[str], None]
+
+
+def mount_parameters(sensor: Sensor) -> dict[str, Any]:
+    m = sensor.mount
+    axis = m.linear_axis if m.linear_axis is not None else [0.0, 0.0, 0.0]
+    return {
+        'mount.base': [float(v) for v in m.base],
+        'mount.yaw_offset': float(m.yaw_offset),
+        'mount.pitch': float(m.pitch),
+        'mount.offset': [float(v) for v in m.offset],
+        'mount.linear_axis': [float(v) for v in axis],
+    }
+
+
+def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
+    info = exp.summary()
+    info.update(
+        {
+            'mode': 'graph',
+            'marker_radius': exp.setup.marker_radius,
+            'object': exp.config['object'],
+            'faults': [f'{f.camera}:{f.kind}:{f.magnitude:g}' for f in faults],
+        }
+    )
+    return info
+
+
+def graph_specs(
+    exp: Experiment,
+    bag: Path,
+    rtf: float = 1.0,
+    image_rate: float = 2.0,
+    faults: Sequence[Fault] = (),
+) -> list[NodeSpec]:
+    """Every node of the run with its parameters, in start order (xy table last)."""
+    cfg = exp.config
+    sim = {'use_sim_time': True}
+    obj = cfg['object']
+    over = [float(v) for v in cfg['overhead']['pose']]
+    by_cam = {f.camera: f for f in faults}
+    pc, dc = cfg['predictor'], cfg['dispatch']
+    specs = [
+        NodeSpec(
+            'recorder',
+            'activesurv_bringup.recorder_node',
+            parameters={
+                **sim,
+                'output': str(bag),
+                'image_rate': float(image_rate),
+                'run_info': json.dumps(run_info(exp, faults)),
+            },
+        ),
+        NodeSpec(
+            'overhead_camera',
+            'activesurv_imaging.sim_camera_node',
+            parameters={
+                **sim,
+                'camera_id': 'overhead',
+                'camera_type': 'overhead',
+                'mount.static_pose': over,
+                'frame_rate': float(cfg['overhead']['rate']),
+                'seed': exp.seed * 100 + 99,
+            },
+        ),
+        NodeSpec(
+            'predictor',
+            'activesurv_prediction.predictor_node',
+            parameters={
+                **sim,
+                'camera_pose': over,
+                'marker_height': float(obj['top_height']),
+                'marker_radius': exp.setup.marker_radius,
+                'demand_times': [float(t) for t in exp.demand_times],
+                'horizon': int(pc['horizon']),
+                'measurement_std': float(pc['measurement_std']),
+                'jerk_std': float(pc['jerk_std']),
+                'confirm_fixes': int(pc['confirm_fixes']),
+                'side_marker_offset': [float(v) for v in obj['side_offset']],
+                'side_marker_normal': [float(v) for v in obj['side_normal']],
+            },
+        ),
+        NodeSpec(
+            'dispatcher',
+            'activesurv_dispatch.dispatcher_node',
+            parameters={
+                **sim,
+                'motion_class': exp.system,
+                'k': int(cfg['k']),
+                'rho': float(dc['rho']),
+                'capture_lead': float(dc['capture_lead']),
+                'settle_time': float(dc['settle_time']),
+            },
+        ),
+        NodeSpec(
+            'fusion',
+            'activesurv_fusion.fusion_node',
+            parameters={
+                **sim,
+                'collect_timeout': float(cfg['fusion']['collect_timeout']),
+                'z_sigma': float(cfg['fusion']['z_sigma']),
+            },
+        ),
+    ]
+    for i, s in enumerate(exp.setup.sensors):
+        cid = s.camera_id
+        fault = by_cam.get(cid)
+        if fault is not None and fault.kind == 'dead':
+            continue  # the camera's nodes are not running
+        kinds = (['linear'] if s.has_linear else []) + ['rotary']
+        specs.append(
+            NodeSpec(
+                f'{cid}_stage',
+                'activesurv_stages.sim_stage_node',
+                parameters={
+                    **sim,
+                    'camera_id': cid,
+                    'joints': list(s.joint_names),
+                    'kinds': kinds,
+                    'min': [lim.min_position for lim in s.limits],
+                    'max': [lim.max_position for lim in s.limits],
+                    'initial': [float(v) for v in exp.setup.initial[cid]],
+                    'motion_class': exp.system,
+                },
+            )
+        )
+        cam_params: dict[str, Any] = {
+            **sim,
+            'camera_id': cid,
+            'frame_rate': 0.0,
+            'seed': exp.seed * 100 + i,
+            **mount_parameters(s),
+        }
+        imager_params: dict[str, Any] = {
+            **sim,
+            'camera_id': cid,
+            'marker_radius': exp.setup.marker_radius,
+            **mount_parameters(s),
+        }
+        if fault is not None:
+            if fault.kind == 'frozen':
+                cam_params['inject_frozen'] = True
+            elif fault.kind == 'bias':
+                imager_params['inject_bias_x'] = fault.magnitude
+            elif fault.kind == 'noise':
+                imager_params['inject_noise'] = fault.magnitude
+            elif fault.kind == 'flip':
+                imager_params['inject_flip'] = True
+        specs.append(
+            NodeSpec(f'{cid}_camera', 'activesurv_imaging.sim_camera_node', parameters=cam_params)
+        )
+        specs.append(
+            NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
+        )
+    spec = exp.actual_spec
+    table: dict[str, Any] = {
+        'path_type': str(spec['type']),
+        'speed': float(obj['speed']),
+        'acceleration': float(obj['acceleration']),
+        'start_time': float(obj['start_time']),
+        'top_height': float(obj['top_height']),
+        'side_offset': [float(v) for v in obj['side_offset']],
+        'side_normal': [float(v) for v in obj['side_normal']],
+        'publish_rate': 50.0,
+        'publish_clock': True,
+        'real_time_factor': float(rtf),
+        # The recorder and every simulated camera must hear the object from the start.
+        'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
+    }
+    if spec['type'] == 'csv':
+        table['csv_file'] = str(spec['csv'])
+    else:
+        table['path_points'] = [float(v) for v in spec['points']]
+    specs.append(NodeSpec('xy_table', 'activesurv_stages.xy_table_node', parameters=table))
+    return specs
+
+
+class _Monitor:
+    """Watches /clock and the estimates from inside the orchestrator."""
+
+    def __init__(self, expected_nodes: Sequence[str]) -> None:
+        import rclpy
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+
+        from activesurv_interfaces.msg import TargetEstimate
+
+        self.rclpy = rclpy
+        self.node = rclpy.create_node('activesurv_monitor')
+        self.sim_time = 0.0
+        self.estimates: dict[int, Any] = {}
+        self.expected_nodes = set(expected_nodes)
+        self.node.create_subscription(
+            Clock,
+            '/clock',
+            self._on_clock,
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT),
+        )
+        self.node.create_subscription(
+            TargetEstimate,
+            'target_estimate',
+            self._on_estimate,
+            QoSProfile(
+                depth=50,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            ),
+        )
+
+    def _on_clock(self, msg: Any) -> None:
+        self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
+
+    def _on_estimate(self, msg: Any) -> None:
+        self.estimates[int(msg.demand_index)] = msg
+
+    def spin(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.rclpy.spin_once(
+                self.node, timeout_sec=min(0.05, max(end - time.monotonic(), 0.0))
+            )
+
+    def missing_nodes(self) -> set[str]:
+        present = {n for n, _ in self.node.get_node_names_and_namespaces()}
+        return self.expected_nodes - present
+
+    def close(self) -> None:
+        self.node.destroy_node()
+
+
+def run_graph(
+    exp: Experiment,
+    out_dir: Path,
+    rtf: float = 1.0,
+    image_rate: float = 2.0,
+    faults: Sequence[Fault] = (),
+    progress: Progress = print,
+    startup_timeout: float = 60.0,
+) -> Path:
+    """Run ``exp`` as a node graph; returns the bag directory.
+
+    Raises:
+        NodeDiedError: if a node dies, or the graph does not come up in time.
+    """
+    import rclpy
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bag = out_dir / 'bag'
+    if bag.exists():
+        raise NodeDiedError(f'{bag} exists: give a new --out directory')
+    specs = graph_specs(exp, bag, rtf, image_rate, faults)
+    env = dict(os.environ)
+    owns_rclpy = not rclpy.ok()
+    if owns_rclpy:
+        rclpy.init()
+    monitor = _Monitor([s.name for s in specs[:-1]])
+    launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env)
+    m = len(exp.demand_times)
+    try:
+        launcher.start()
+        deadline = time.monotonic() + startup_timeout
+        while monitor.missing_nodes():
+            launcher.check()
+            if time.monotonic() > deadline:
+                raise NodeDiedError(
+                    f'nodes did not come up in {startup_timeout:.0f} s: '
+                    f'{sorted(monitor.missing_nodes())}'
+                )
+            monitor.spin(0.2)
+        monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
+        progress(f'{len(specs)} nodes up; starting the xy table and simulated time')
+        launcher.start_node(specs[-1])
+        end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
+        wall_limit = time.monotonic() + (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0
+        shown = -1
+        while len(monitor.estimates) < m and monitor.sim_time < end_sim:
+            launcher.check()
+            monitor.spin(0.25)
+            if len(monitor.estimates) != shown:
+                shown = len(monitor.estimates)
+                progress(
+                    f'demand {shown} of {m} answered, simulated time {monitor.sim_time:.1f} s'
+                )
+            if time.monotonic() > wall_limit:
+                raise NodeDiedError(
+                    f'the run did not finish in time (simulated time '
+                    f'{monitor.sim_time:.1f} s of {end_sim:.1f} s)'
+                )
+        monitor.spin(0.5)  # the recorder gets the last messages
+    finally:
+        monitor.close()
+        # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
+        launcher.stop()
+        if owns_rclpy:
+            rclpy.try_shutdown()
+    return bag

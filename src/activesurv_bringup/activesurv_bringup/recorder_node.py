@@ -1,0 +1,197 @@
+"""The ``recorder`` node: records every topic of the graph to an MCAP rosbag2 bag.
+
+Like ``ros2 bag record -a`` (not available from PyPI): topics are discovered as they appear,
+each is subscribed with QoS matching its publishers (reliable only if they all are, transient
+local only if they all are, so latched blackboard topics arrive too), and messages are written
+as received (serialized bytes, no conversion) with the node's clock (simulated time in
+experiments). Streams listed in ``thin_topics`` (default: the overhead camera) are thinned to
+``image_rate`` Hz; every other message is kept (the triggered frames of the dynamic cameras
+must all be there for replay). Message definitions go into the bag (Foxglove and ``ros2 bag``
+read them). The ``run_info`` parameter (a JSON document) is stored on ``/activesurv/run_info``.
+On SIGINT/SIGTERM the bag is closed cleanly.
+
+Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
+exclude (topics), discovery_period (s), run_info (JSON).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import signal
+import sys
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+
+from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, open_writer
+from activesurv_bringup.errors import BagError
+
+
+def message_class(type_name: str) -> Any:
+    """The Python class of ``pkg/msg/Name``."""
+    pkg, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
+
+class RecorderNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('recorder', **kwargs)
+        d = ParameterDescriptor
+        self.declare_parameter('output', '', d(description='bag directory (must not exist)'))
+        self.declare_parameter('image_rate', 2.0, d(description='Hz per image topic; 0: all'))
+        self.declare_parameter(
+            'exclude', ['/rosout', '/parameter_events'], d(description='topics not recorded')
+        )
+        self.declare_parameter('discovery_period', 0.5, d(description='s between discoveries'))
+        self.declare_parameter('run_info', '{}', d(description='JSON stored in the bag'))
+        self.declare_parameter(
+            'thin_topics',
+            ['/overhead/image_raw', '/overhead/camera_info'],
+            d(description='streams thinned to image_rate'),
+        )
+        g = self.get_parameter
+        output = str(g('output').value)
+        if not output:
+            raise BagError('recorder needs the output parameter (a new bag directory)')
+        self.bag: BagWriter | None = open_writer(Path(output))
+        self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
+        self.exclude = set(g('exclude').value)
+        self.subscribed: dict[str, str] = {}
+        self.last_image: dict[str, float] = {}
+        self.counts: dict[str, int] = {}
+        self.thin = set(g('thin_topics').value)
+        try:
+            info = json.loads(str(g('run_info').value))
+        except ValueError as exc:
+            raise BagError(f'run_info is not JSON: {exc}') from exc
+        self.bag.write_json(RUN_INFO_TOPIC, 0, info)
+        # Discovery runs on the wall clock: with simulated time nothing would tick before /clock.
+        self.create_timer(
+            float(g('discovery_period').value),
+            self._discover,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
+        self._discover()
+
+    def _qos(self, topic: str) -> tuple[QoSProfile, Qos]:
+        infos = self.get_publishers_info_by_topic(topic)
+        reliable = bool(infos) and all(
+            i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos
+        )
+        latched = bool(infos) and all(
+            i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
+        )
+        profile = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=200,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
+        zero = QosTime(0, 0)
+        offered = Qos(
+            QosHistory.KEEP_LAST,
+            1 if latched else 10,
+            QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+            QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+            zero,
+            zero,
+            QosLiveliness.AUTOMATIC,
+            zero,
+            False,
+        )
+        return profile, offered
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscribed or topic in self.exclude or not types:
+                continue
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f'cannot record {topic}: unknown type {type_name}')
+                self.subscribed[topic] = type_name
+                continue
+            profile, offered = self._qos(topic)
+            assert self.bag is not None
+            self.bag.connection(topic, type_name, offered)
+            self.create_subscription(
+                cls, topic, self._callback(topic, type_name), profile, raw=True
+            )
+            self.subscribed[topic] = type_name
+            self.get_logger().info(f'recording {topic} [{type_name}]')
+
+    def _callback(self, topic: str, type_name: str) -> Any:
+        thinned = topic in self.thin
+
+        def callback(data: bytes) -> None:
+            if self.bag is None:
+                return
+            now = self.get_clock().now().nanoseconds
+            if thinned and self.image_period:
+                last = self.last_image.get(topic, -1e18)
+                if now * 1e-9 - last < self.image_period - 1e-6:
+                    return
+                self.last_image[topic] = now * 1e-9
+            self.bag.write_raw(topic, type_name, now, data)
+            self.counts[topic] = self.counts.get(topic, 0) + 1
+
+        return callback
+
+    def close(self) -> None:
+        if self.bag is not None:
+            self.bag.close()
+            self.get_logger().info(
+                f'bag closed: {sum(self.counts.values())} messages on {len(self.counts)} topics'
+            )
+            self.bag = None
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = RecorderNode()
+    except BagError as exc:
+        print(f'recorder: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stopping = False
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        while rclpy.ok() and not stopping:
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,266 @@
+"""Evaluate recorded runs and report them like the paper's Figs. 10-15.
+
+From a bag alone (the orchestrator stores the run's description in it):
+
+* truth: ``object_state`` (the xy table's side marker and normal), interpolated to each demand
+  instant;
+* assignment: the ``capture_request`` of each demand;
+* visibility (eq. 2): from the ``marker_observations`` that succeeded, with each camera's pose at
+  the exposure, for the true target;
+* estimate, faulty cameras, status: the ``target_estimate`` of each demand; its latency is its
+  bag time minus the demand instant.
+
+A directory of runs gives one report: ``report.md``, plots of visibility, position error and
+orientation error over the demand instants (static, medium, fast; Sets A and B), and
+``summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from activesurv_bringup.bagio import read_bag, run_info
+from activesurv_bringup.errors import BagError
+from activesurv_bringup.evaluation import (
+    DemandRecord,
+    results_document,
+    summary,
+    visibility_from_transforms,
+    write_results,
+)
+from activesurv_imaging.geometry import Transform, matrix_from_quaternion
+from activesurv_imaging.sensor_model import SensorModel
+from activesurv_imaging.timeseries import TimeSeries
+
+TOPICS = {'/object_state', '/capture_request', '/marker_observations', '/target_estimate'}
+STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
+
+
+def _stamp(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+
+
+def _vec(v: Any) -> np.ndarray:
+    return np.array([v.x, v.y, v.z], dtype=np.float64)
+
+
+def evaluate_bag(bag: Path) -> dict[str, Any]:
+    """The results document of one recorded run.
+
+    Raises:
+        BagError: for a missing, damaged or foreign bag.
+    """
+    info = run_info(bag)
+    times = [float(t) for t in info['demand_times']]
+    truth = TimeSeries(6, capacity=10**7)
+    requests: dict[int, Any] = {}
+    observations: dict[int, list[Any]] = {}
+    estimates: dict[int, tuple[Any, int]] = {}
+    for m in read_bag(bag, TOPICS):
+        if m.topic == '/object_state':
+            truth.add(_stamp(m.msg), np.r_[_vec(m.msg.side_marker), _vec(m.msg.side_normal)])
+        elif m.topic == '/capture_request':
+            requests.setdefault(int(m.msg.demand_index), m.msg)
+        elif m.topic == '/marker_observations':
+            observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
+        elif m.topic == '/target_estimate':
+            estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
+    if len(truth) == 0:
+        raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
+    model = SensorModel.load()
+    records = []
+    for j, tj in enumerate(times):
+        s = truth.at(tj, hold=0.5)
+        if s is None:
+            raise BagError(f'no ground truth near demand {j} at {tj:.2f} s')
+        rec = DemandRecord(j, tj, s[:3], s[3:])
+        req = requests.get(j)
+        if req is not None:
+            rec.assigned = [str(c) for c in req.camera_ids]
+        seen = []
+        for o in observations.get(j, []):
+            if o.status == 0:
+                p, q = o.camera_pose.position, o.camera_pose.orientation
+                seen.append(
+                    Transform.from_rt(
+                        matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z]
+                    )
+                )
+        rec.visibility = visibility_from_transforms(model, seen, s[:3], s[3:]) if seen else 0.0
+        est = estimates.get(j)
+        if est is None:
+            rec.status = 'not_captured' if req is None else 'no_answer'
+            rec.reason = (
+                'the demand passed with no capture request'
+                if req is None
+                else 'no target_estimate was recorded for it'
+            )
+        else:
+            e, t_ns = est
+            rec.status = STATUS.get(int(e.status), f'status_{e.status}')
+            rec.reason = str(e.reason)
+            rec.cameras = [str(c) for c in e.cameras_used]
+            rec.faulty = [str(c) for c in e.cameras_faulty]
+            rec.missing = [str(c) for c in e.cameras_missing]
+            rec.latency = t_ns * 1e-9 - tj
+            if e.status in (0, 3) and np.all(np.isfinite(_vec(e.position))):
+                rec.estimated_position = _vec(e.position)
+                rec.estimated_normal = _vec(e.normal)
+        records.append(rec)
+    return results_document(
+        str(info['set']),
+        str(info['system']),
+        records,
+        {
+            'seed': info.get('seed'),
+            'mode': info.get('mode', 'graph'),
+            'faults': info.get('faults', []),
+        },
+    )
+
+
+def find_runs(path: Path) -> list[Path]:
+    """Run directories under ``path`` (a run has ``bag/`` or ``results.json``), or ``path``."""
+    if (
+        (path / 'bag').is_dir()
+        or (path / 'results.json').is_file()
+        or (path / 'metadata.yaml').is_file()
+    ):
+        return [path]
+    return sorted(
+        p
+        for p in path.iterdir()
+        if p.is_dir() and ((p / 'bag').is_dir() or (p / 'results.json').is_file())
+    )
+
+
+def load_run(run: Path, refresh: bool = True) -> dict[str, Any]:
+    """The results of a run: from its bag (rewriting results.json) or its results.json."""
+    bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
+    if bag.is_dir() and refresh:
+        doc = evaluate_bag(bag)
+        out = run.parent if bag == run else run
+        write_results(out / 'results.json', doc)
+        return doc
+    try:
+        return dict(json.loads((run / 'results.json').read_text()))
+    except (OSError, ValueError) as exc:
+        raise BagError(f'{run}: neither a bag nor a readable results.json') from exc
+
+
+def summary_table(docs: Sequence[dict[str, Any]]) -> str:
+    head = (
+        f'{"set":>3} {"system":>7} {"mean vis [1e6/m]":>17} {"pos err [mm]":>13} '
+        f'{"orient err [deg]":>16} {"estimates":>9} {"latency [ms]":>12}'
+    )
+    lines = [head, '-' * len(head)]
+    for d in sorted(
+        docs,
+        key=lambda d: (
+            d['set'],
+            ('static', 'medium', 'fast').index(d['system'])
+            if d['system'] in ('static', 'medium', 'fast')
+            else 9,
+        ),
+    ):
+        s = summary(d)
+        lat = [r['latency'] for r in d['demands'] if r.get('latency') is not None]
+        lat_txt = f'{1e3 * float(np.median(lat)):12.0f}' if lat else f'{"-":>12}'
+        lines.append(
+            f'{d["set"]:>3} {d["system"]:>7} {s["mean_visibility"] / 1e6:17.1f} '
+            f'{1e3 * s["median_position_error"]:13.3f} '
+            f'{math.degrees(s["median_orientation_error"]):16.4f} '
+            f'{int(s["estimates"]):>4}/{int(s["demands"]):<4} {lat_txt}'
+        )
+    return '\n'.join(lines)
+
+
+def plot_runs(docs: Sequence[dict[str, Any]], out_dir: Path) -> list[Path]:
+    """Figs. 10-15: visibility, position and orientation error per demand, per set."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    metrics = [
+        ('visibility', 'visibility [1e6 / m]', 1e-6, 'visibility'),
+        ('position_error', 'position error [mm]', 1e3, 'position_error'),
+        ('orientation_error', 'orientation error [deg]', math.degrees(1), 'orientation'),
+    ]
+    styles = {'static': ('tab:gray', 's'), 'medium': ('tab:blue', 'o'), 'fast': ('tab:red', '^')}
+    files = []
+    for key, label, scale, stem in metrics:
+        sets = sorted({d['set'] for d in docs})
+        fig, axes = plt.subplots(1, len(sets), figsize=(6 * len(sets), 4), squeeze=False)
+        for ax, set_name in zip(axes[0], sets, strict=True):
+            for d in [d for d in docs if d['set'] == set_name]:
+                xs = [r['index'] + 1 for r in d['demands']]
+                ys = [np.nan if r[key] is None else r[key] * scale for r in d['demands']]
+                color, marker = styles.get(d['system'], ('k', 'x'))
+                ax.plot(xs, ys, marker=marker, color=color, label=d['system'])
+            ax.set_title(f'Experiment Set {set_name}')
+            ax.set_xlabel('demand instant')
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+            ax.legend()
+        fig.tight_layout()
+        path = out_dir / f'{stem}.png'
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        files.append(path)
+    return files
+
+
+def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    plots = plot_runs(docs, out_dir)
+    table = summary_table(docs)
+    lines = [
+        '# activesurv experiment report',
+        '',
+        'Experiments of the paper (Section IV) on simulated stages and cameras. Visibility '
+        'is eq. 2 for the cameras that imaged the marker; errors are eq. 9 and 10 against '
+        'the xy table.',
+        '',
+        '```',
+        table,
+        '```',
+        '',
+    ]
+    for p in plots:
+        lines += [f'![{p.stem}]({p.name})', '']
+    for d in docs:
+        faulty = sorted({c for r in d['demands'] for c in r['faulty']})
+        failed = [r['index'] for r in d['demands'] if r['estimated_position'] is None]
+        lines.append(
+            f'- Set {d["set"]}, {d["system"]}: faulty cameras {faulty or "none"}; '
+            f'demands without an estimate {failed or "none"}'
+        )
+    path = out_dir / 'report.md'
+    path.write_text('\n'.join(lines) + '\n')
+    (out_dir / 'summary.json').write_text(
+        json.dumps({f'{d["set"]}_{d["system"]}': summary(d) for d in docs}, indent=2) + '\n'
+    )
+    return path
+
+
+def report(path: Path) -> tuple[list[dict[str, Any]], Path]:
+    """Regenerate results.json of every run under ``path`` and the combined report.
+
+    Raises:
+        BagError: if ``path`` holds no run.
+    """
+    if not path.exists():
+        raise BagError(f'{path} does not exist')
+    runs = find_runs(path)
+    if not runs:
+        raise BagError(f'no runs (bag/ or results.json) under {path}')
+    docs = [load_run(r) for r in runs]
+    out = path if path.is_dir() and (path / 'metadata.yaml').is_file() is False else path.parent
+    return docs, write_report(docs, out)

@@ -6,6 +6,7 @@
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--rtf X] [--image-rate HZ]
     activesurv report RUN_DIR_OR_BAG
+    activesurv replay BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
     activesurv stages {probe,move,emulate} ...
 """
@@ -50,6 +51,11 @@ def _build_parser() -> argparse.ArgumentParser:
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
     )
+
+    rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
+    rpl.add_argument('bag', type=Path, help='the bag of a run (RUN_DIR/bag)')
+    rpl.add_argument('--out', type=Path, required=True, help='output directory')
+    rpl.add_argument('--rtf', type=float, default=0.5, help='bag s per wall s')
 
     rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
@@ -133,6 +139,21 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == 'experiment':
             run_experiment(args, args.out, args.set_name, args.system, args.seed)
+            return 0
+        if args.command == 'replay':
+            from activesurv_bringup.replay import compare, run_replay
+
+            new = run_replay(args.bag, args.out, args.rtf)
+            rows = compare(args.bag, new)
+            (args.out / 'replay.json').write_text(json.dumps(rows, indent=2))
+            print(f'{"demand":>6} {"recorded":>9} {"replayed":>9} {"difference [mm]":>16}')
+            for r in rows:
+                d = r['position_difference']
+                print(
+                    f'{r["index"]:>6} {r["recorded_status"]!s:>9} '
+                    f'{r["replayed_status"]!s:>9} {1e3 * d:16.6f}'
+                )
+            print(f'\nreplayed bag: {new}')
             return 0
         if args.command == 'report':
             from activesurv_bringup.report import report, summary_table

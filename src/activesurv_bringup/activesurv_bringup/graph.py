@@ -161,6 +161,7 @@ def graph_specs(
             'camera_id': cid,
             'marker_radius': exp.setup.marker_radius,
             **mount_parameters(s),
+            'reliable_images': True,
         }
         if fault is not None:
             if fault.kind == 'frozen':

@@ -82,6 +82,11 @@ class ImagerNode(Node):
         self.declare_parameter(
             'joint_hold', 0.2, d(description='s a stage state may be held beyond its stamp')
         )
+        self.declare_parameter(
+            'reliable_images',
+            False,
+            d(description='subscribe to images reliably (publisher must be)'),
+        )
         self.declare_parameter('inject_bias_x', 0.0, d(description='fault: m added to world x'))
         self.declare_parameter('inject_noise', 0.0, d(description='fault: extra position std'))
         self.declare_parameter('inject_flip', False, d(description='fault: wrong circle pose'))
@@ -112,7 +117,14 @@ class ImagerNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
-        self.create_subscription(Image, topics.image(self.camera_id), self._on_image, qos.SENSOR)
+        # Real camera drivers publish best effort; our simulated cameras (and replays) publish
+        # reliably, and then nothing needs to be lost.
+        image_qos = (
+            qos.SENSOR_RELIABLE
+            if bool(self.get_parameter('reliable_images').value)
+            else qos.SENSOR
+        )
+        self.create_subscription(Image, topics.image(self.camera_id), self._on_image, image_qos)
         self.create_subscription(
             CameraInfo, topics.camera_info(self.camera_id), self._on_info, qos.SENSOR
         )

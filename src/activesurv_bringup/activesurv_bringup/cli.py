@@ -4,7 +4,7 @@
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
-        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--rtf X] [--image-rate HZ]
+        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--rtf X] [--image-rate HZ] [--compose]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
@@ -50,6 +50,11 @@ def _build_parser() -> argparse.ArgumentParser:
     exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
+    )
+    exp.add_argument(
+        '--compose',
+        action='store_true',
+        help='graph mode with every node in this process (one executor)',
     )
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
@@ -120,6 +125,7 @@ def run_experiment(
             image_rate=getattr(args, 'image_rate', 2.0),
             faults=faults,
             progress=say,
+            compose=getattr(args, 'compose', False),
         )
         doc = load_run(out)
     print(

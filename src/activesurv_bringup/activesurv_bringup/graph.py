@@ -15,12 +15,15 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_bringup.experiment import Experiment
 from activesurv_bringup.faults import Fault
 from activesurv_bringup.launcher import Launcher, NodeSpec
+
+if TYPE_CHECKING:
+    from activesurv_bringup.compose import Composition
 from activesurv_dispatch.sensors import Sensor
 
 Progress = Callable[[str], None]
@@ -262,8 +265,12 @@ def run_graph(
     faults: Sequence[Fault] = (),
     progress: Progress = print,
     startup_timeout: float = 60.0,
+    compose: bool = False,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
+
+    With ``compose`` every node runs in this process on one executor instead of in its own
+    process.
 
     Raises:
         NodeDiedError: if a node dies, or the graph does not come up in time.
@@ -280,10 +287,19 @@ def run_graph(
     if owns_rclpy:
         rclpy.init()
     monitor = _Monitor([s.name for s in specs[:-1]])
-    launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env)
+    launcher: Launcher | Composition
+    if compose:
+        from activesurv_bringup.compose import Composition
+
+        launcher = Composition()
+    else:
+        launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env)
     m = len(exp.demand_times)
     try:
-        launcher.start()
+        if isinstance(launcher, Launcher):
+            launcher.start()
+        else:
+            launcher.add(specs[:-1])
         deadline = time.monotonic() + startup_timeout
         while monitor.missing_nodes():
             launcher.check()
@@ -295,7 +311,10 @@ def run_graph(
             monitor.spin(0.2)
         monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
         progress(f'{len(specs)} nodes up; starting the xy table and simulated time')
-        launcher.start_node(specs[-1])
+        if isinstance(launcher, Launcher):
+            launcher.start_node(specs[-1])
+        else:
+            launcher.add(specs[-1:])
         end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
         wall_limit = time.monotonic() + (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0
         shown = -1

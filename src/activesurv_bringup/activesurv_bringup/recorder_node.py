@@ -20,6 +20,7 @@ import importlib
 import json
 import signal
 import sys
+import threading
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -77,6 +78,7 @@ class RecorderNode(Node):
         self.last_image: dict[str, float] = {}
         self.counts: dict[str, int] = {}
         self.thin = set(g('thin_topics').value)
+        self._lock = threading.Lock()
         try:
             info = json.loads(str(g('run_info').value))
         except ValueError as exc:
@@ -130,8 +132,9 @@ class RecorderNode(Node):
                 self.subscribed[topic] = type_name
                 continue
             profile, offered = self._qos(topic)
-            assert self.bag is not None
-            self.bag.connection(topic, type_name, offered)
+            with self._lock:
+                assert self.bag is not None
+                self.bag.connection(topic, type_name, offered)
             self.create_subscription(
                 cls, topic, self._callback(topic, type_name), profile, raw=True
             )
@@ -142,20 +145,25 @@ class RecorderNode(Node):
         thinned = topic in self.thin
 
         def callback(data: bytes) -> None:
-            if self.bag is None:
-                return
-            now = self.get_clock().now().nanoseconds
-            if thinned and self.image_period:
-                last = self.last_image.get(topic, -1e18)
-                if now * 1e-9 - last < self.image_period - 1e-6:
+            with self._lock:  # callbacks may run concurrently (multi-threaded executors)
+                if self.bag is None:
                     return
-                self.last_image[topic] = now * 1e-9
-            self.bag.write_raw(topic, type_name, now, data)
-            self.counts[topic] = self.counts.get(topic, 0) + 1
+                now = self.get_clock().now().nanoseconds
+                if thinned and self.image_period:
+                    last = self.last_image.get(topic, -1e18)
+                    if now * 1e-9 - last < self.image_period - 1e-6:
+                        return
+                    self.last_image[topic] = now * 1e-9
+                self.bag.write_raw(topic, type_name, now, data)
+                self.counts[topic] = self.counts.get(topic, 0) + 1
 
         return callback
 
     def close(self) -> None:
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
         if self.bag is not None:
             self.bag.close()
             self.get_logger().info(

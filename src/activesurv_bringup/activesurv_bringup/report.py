@@ -262,5 +262,6 @@ def report(path: Path) -> tuple[list[dict[str, Any]], Path]:
     if not runs:
         raise BagError(f'no runs (bag/ or results.json) under {path}')
     docs = [load_run(r) for r in runs]
-    out = path if path.is_dir() and (path / 'metadata.yaml').is_file() is False else path.parent
+    # A bag's report goes next to it (its run directory); otherwise into the given directory.
+    out = path.parent if (path / 'metadata.yaml').is_file() else path
     return docs, write_report(docs, out)

@@ -1,0 +1,209 @@
+"""Integration: a graph run of the paper's experiment, its bag, report, replay, and agreement with
+lockstep mode. One graph run (Set A, fast system) is shared by the tests of this module."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from rosbags.rosbag2 import Reader
+
+from activesurv_bringup.evaluation import results_document, summary
+from activesurv_bringup.experiment import load_experiment
+from activesurv_bringup.lockstep import run_lockstep
+
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
+ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
+SEED = 3
+KEYS = {
+    'index',
+    't',
+    'true_position',
+    'estimated_position',
+    'true_normal',
+    'estimated_normal',
+    'position_error',
+    'orientation_error',
+    'visibility',
+    'cameras',
+    'faulty',
+}
+
+
+def _run(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [ACTIVESURV, *args], capture_output=True, text=True, timeout=timeout, check=False
+    )
+
+
+@pytest.fixture(scope='module')
+def graph_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    out = tmp_path_factory.mktemp('graph') / 'A_fast'
+    r = _run(
+        'experiment', '--set', 'A', '--system', 'fast', '--out', str(out), '--seed', str(SEED)
+    )
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    assert 'demand 10 of 10 answered' in r.stdout  # progress was shown
+    yield out
+
+
+def test_results_json_contract(graph_run: Path) -> None:
+    doc = json.loads((graph_run / 'results.json').read_text())
+    assert doc['set'] == 'A'
+    assert doc['system'] == 'fast'
+    assert [d['index'] for d in doc['demands']] == list(range(10))
+    for d in doc['demands']:
+        assert set(d) >= KEYS
+        assert len(d['true_position']) == 3
+        assert len(d['true_normal']) == 3
+        assert isinstance(d['visibility'], float)
+    estimated = [d for d in doc['demands'] if d['estimated_position'] is not None]
+    assert len(estimated) >= 9
+    assert all(d['position_error'] < 0.5e-3 for d in estimated)
+    assert all(d['orientation_error'] < math.radians(1.0) for d in estimated)
+
+
+def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:
+    bag = graph_run / 'bag'
+    assert (bag / 'metadata.yaml').exists()
+    assert 'storage_identifier: mcap' in (bag / 'metadata.yaml').read_text()
+    with Reader(bag) as reader:  # plain rosbags, not our wrapper
+        conns = {c.topic: c for c in reader.connections}
+        for topic in (
+            '/clock',
+            '/object_state',
+            '/demand_horizon',
+            '/dispatch_plan',
+            '/capture_request',
+            '/marker_observations',
+            '/target_estimate',
+            '/cam1/image_raw',
+            '/overhead/image_raw',
+            '/cam1/stage/joint_states',
+        ):
+            assert topic in conns, topic
+        est = conns['/target_estimate']
+        assert est.msgtype == 'activesurv_interfaces/msg/TargetEstimate'
+        assert 'cameras_faulty' in est.msgdef.data  # the definition travels with the bag
+        assert reader.message_count > 1000
+
+
+def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
+    before = json.loads((graph_run / 'results.json').read_text())
+    (graph_run / 'results.json').unlink()
+    r = _run('report', str(graph_run))
+    assert r.returncode == 0, r.stderr
+    after = json.loads((graph_run / 'results.json').read_text())
+    assert after['demands'] == before['demands']
+    for name in ('report.md', 'visibility.png', 'position_error.png', 'orientation.png'):
+        assert (graph_run / name).exists(), name
+    assert 'fast' in r.stdout
+
+
+def test_replay_reproduces_the_estimates(graph_run: Path, tmp_path: Path) -> None:
+    r = _run('replay', str(graph_run / 'bag'), '--out', str(tmp_path / 'replay'))
+    assert r.returncode == 0, r.stderr[-3000:]
+    rows = json.loads((tmp_path / 'replay' / 'replay.json').read_text())
+    assert len(rows) == 10
+    for row in rows:
+        assert row['replayed_status'] == row['recorded_status'], row
+        if row['recorded_status'] in (0, 3):
+            assert row['position_difference'] < 1e-9, row
+            assert row['replayed_cameras'] == row['recorded_cameras']
+
+
+def test_lockstep_and_graph_agree(graph_run: Path) -> None:
+    """Same scenario in both modes: the same cameras for at least 8 of 10 demands, and each
+    demand's position error within 0.3 mm of the other mode's (image noise differs)."""
+    graph = json.loads((graph_run / 'results.json').read_text())
+    exp = load_experiment('A', 'fast', SEED)
+    lock = results_document('A', 'fast', run_lockstep(exp))
+    same = sum(
+        sorted(a['assigned']) == sorted(b['assigned'])
+        for a, b in zip(graph['demands'], lock['demands'], strict=True)
+    )
+    assert same >= 8, [
+        (a['assigned'], b['assigned'])
+        for a, b in zip(graph['demands'], lock['demands'], strict=True)
+    ]
+    for a, b in zip(graph['demands'], lock['demands'], strict=True):
+        if a['position_error'] is not None and b['position_error'] is not None:
+            assert abs(a['position_error'] - b['position_error']) < 0.3e-3
+    sg, sl = summary(graph), summary(lock)
+    assert abs(sg['mean_visibility'] - sl['mean_visibility']) < 0.1 * sl['mean_visibility']
+
+
+def test_lockstep_is_deterministic() -> None:
+    exp = load_experiment('A', 'medium', 5)
+    a = results_document('A', 'medium', run_lockstep(exp))
+    b = results_document('A', 'medium', run_lockstep(exp))
+    for x in (a, b):
+        for d in x['demands']:
+            d.pop('latency')
+    assert a == b
+
+
+def test_compose_mode_runs_the_same_graph_in_one_process(tmp_path: Path) -> None:
+    out = tmp_path / 'composed'
+    r = _run(
+        'experiment',
+        '--set',
+        'A',
+        '--system',
+        'static',
+        '--out',
+        str(out),
+        '--seed',
+        '2',
+        '--compose',
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    doc = json.loads((out / 'results.json').read_text())
+    assert len(doc['demands']) == 10
+    assert sum(d['estimated_position'] is not None for d in doc['demands']) >= 8
+
+
+def test_bad_input_gets_a_clear_error(tmp_path: Path) -> None:
+    r = _run(
+        'experiment',
+        '--set',
+        'A',
+        '--system',
+        'fast',
+        '--out',
+        str(tmp_path / 'x'),
+        '--mode',
+        'lockstep',
+        '--fault',
+        'cam9:bias:0.01',
+    )
+    assert r.returncode == 1
+    assert 'unknown camera' in r.stderr
+    assert 'Traceback' not in r.stderr
+    bad = tmp_path / 'bad.csv'
+    bad.write_text('t,x,y\n0,0.1,0.1\n1,0.9,0.1\n')  # off the table
+    r = _run(
+        'experiment',
+        '--set',
+        'A',
+        '--system',
+        'fast',
+        '--out',
+        str(tmp_path / 'y'),
+        '--mode',
+        'lockstep',
+        '--trajectory',
+        str(bad),
+    )
+    assert r.returncode == 1
+    assert 'leaves the table' in r.stderr
+    (tmp_path / 'corrupt' / 'bag').mkdir(parents=True)
+    (tmp_path / 'corrupt' / 'bag' / 'metadata.yaml').write_text('garbage: [\n')
+    r = _run('report', str(tmp_path / 'corrupt'))
+    assert r.returncode == 1
+    assert 'Traceback' not in r.stderr

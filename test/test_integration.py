@@ -7,7 +7,6 @@ import json
 import math
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -42,14 +41,14 @@ def _run(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]
 
 
 @pytest.fixture(scope='module')
-def graph_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+def graph_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp('graph') / 'A_fast'
     r = _run(
         'experiment', '--set', 'A', '--system', 'fast', '--out', str(out), '--seed', str(SEED)
     )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert 'demand 10 of 10 answered' in r.stdout  # progress was shown
-    yield out
+    return out
 
 
 def test_results_json_contract(graph_run: Path) -> None:

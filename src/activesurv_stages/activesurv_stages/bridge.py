@@ -235,8 +235,16 @@ class BridgeWorker:
             self._pending.clear()
         for j in stops:
             driver.stop(self.axes[j].axis)
-        for goal in goals:
-            self._send(goal)
+        for i, goal in enumerate(goals):
+            try:
+                self._send(goal)
+            except (CommunicationError, ProtocolError):
+                # The link failed mid-send: keep this goal and the unsent ones for after the
+                # reconnect, unless newer goals arrived meanwhile.
+                with self._lock:
+                    for g in goals[i:]:
+                        self._pending.setdefault(g.joint, g)
+                raise
 
     def _home(self, joints: list[str]) -> None:
         assert self._driver is not None

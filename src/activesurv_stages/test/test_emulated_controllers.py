@@ -74,7 +74,7 @@ def grbl_emu(tmp_path: Path) -> Iterator[GrblEmulator]:
 
 
 def _wait(
-    worker: BridgeWorker, pred: Callable[[Snapshot], bool], timeout: float = 15.0
+    worker: BridgeWorker, pred: Callable[[Snapshot], bool], timeout: float = 30.0
 ) -> Snapshot:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:

@@ -1,0 +1,108 @@
+"""Integration benchmarks: the paper's findings over many seeds (lockstep), speed, latency.
+
+* Findings, 20 seeds x 2 sets x 3 systems in lockstep mode: mean visibility per set and system
+  (fast > medium > static in both sets?), Set B recovery (the first demand from which a system's
+  visibility stays within 20 % of its Set A value), and the fast system's median errors in Set A.
+* ``lockstep_seconds``: median wall time of one lockstep experiment.
+* ``estimate_latency_ms``: graph mode at real time (rtf 1), demand instant to published
+  TargetEstimate, median over the demands of one run (simulated ms = wall ms at rtf 1).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SEEDS = 20
+SYSTEMS = ('static', 'medium', 'fast')
+
+
+def _one(args: tuple[str, str, int]) -> dict[str, Any]:
+    from activesurv_bringup.evaluation import results_document
+    from activesurv_bringup.experiment import load_experiment
+    from activesurv_bringup.lockstep import run_lockstep
+
+    set_name, system, seed = args
+    exp = load_experiment(set_name, system, seed)
+    t0 = time.perf_counter()
+    doc = results_document(set_name, system, run_lockstep(exp))
+    doc['seconds'] = time.perf_counter() - t0
+    return doc
+
+
+def _recovery(b: list[float], a: list[float]) -> int:
+    """First demand from which B stays within 20 % of A (index; len if never)."""
+    for j in range(len(a)):
+        if all(b[i] >= 0.8 * a[i] for i in range(j, len(a))):
+            return j
+    return len(a)
+
+
+def run() -> dict[str, Any]:
+    from activesurv_bringup.experiment import load_experiment
+
+    for s in ('A', 'B'):  # warm the initial-pose cache once, not in every worker
+        for system in SYSTEMS:
+            load_experiment(s, system, 0)
+    jobs = [(s, system, seed) for s in ('A', 'B') for system in SYSTEMS for seed in range(SEEDS)]
+    with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+        docs = list(pool.map(_one, jobs))
+    by: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for (s, system, _), doc in zip(jobs, docs, strict=True):
+        by.setdefault((s, system), []).append(doc)
+
+    out: dict[str, Any] = {'seeds': SEEDS}
+    mean_vis = {
+        f'{s}_{system}': round(
+            float(np.mean([d['visibility'] for doc in by[(s, system)] for d in doc['demands']]))
+            / 1e6,
+            2,
+        )
+        for s in ('A', 'B')
+        for system in SYSTEMS
+    }
+    out['mean_visibility_1e6'] = mean_vis
+    for s in ('A', 'B'):
+        v = [mean_vis[f'{s}_{x}'] for x in SYSTEMS]
+        out[f'fast_beats_medium_beats_static_{s}'] = bool(v[2] > v[1] > v[0])
+    curve = {
+        key: [
+            float(np.mean([doc['demands'][j]['visibility'] for doc in docs_])) for j in range(10)
+        ]
+        for key, docs_ in by.items()
+    }
+    rec = {
+        system: _recovery(curve[('B', system)], curve[('A', system)])
+        for system in ('medium', 'fast')
+    }
+    out['set_B_recovery_demand'] = rec
+    out['set_B_recovers_within_3'] = bool(rec['medium'] <= 3 and rec['fast'] <= 3)
+    out['set_B_fast_no_later_than_medium'] = bool(rec['fast'] <= rec['medium'])
+    fast = [d for doc in by[('A', 'fast')] for d in doc['demands']]
+    pos = [d['position_error'] for d in fast if d['position_error'] is not None]
+    ori = [d['orientation_error'] for d in fast if d['orientation_error'] is not None]
+    out['fast_A_median_position_error_mm'] = round(1e3 * statistics.median(pos), 4)
+    out['fast_A_median_orientation_error_deg'] = round(math.degrees(statistics.median(ori)), 4)
+    out['fast_A_estimates'] = f'{len(pos)}/{len(fast)}'
+    out['lockstep_seconds'] = round(statistics.median(doc['seconds'] for doc in docs), 2)
+
+    # Graph mode latency at real time.
+    from activesurv_bringup.graph import run_graph
+    from activesurv_bringup.report import load_run
+
+    exp = load_experiment('A', 'fast', 7)
+    with tempfile.TemporaryDirectory() as tmp:
+        run_graph(exp, Path(tmp) / 'run', rtf=1.0, progress=lambda _: None)
+        doc = load_run(Path(tmp) / 'run')
+    lat = [d['latency'] for d in doc['demands'] if d['latency'] is not None]
+    out['estimate_latency_ms'] = round(1e3 * statistics.median(lat), 1) if lat else None
+    out['estimate_latency_p90_ms'] = round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None
+    return out

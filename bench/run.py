@@ -37,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
         if spec is None or spec.loader is None:
             raise ImportError(f'cannot load benchmark module {path}')
         module = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = module  # worker processes find its functions by name
         spec.loader.exec_module(module)
         print(f'bench: {area} ...', flush=True)
         t0 = time.perf_counter()

@@ -9,6 +9,7 @@ Reading uses the definitions stored in the bag itself, so a bag from another ver
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,6 +90,21 @@ class BagWriter:
             self.ts.serialize_cdr(msg, 'std_msgs/msg/String'),
         )
 
+    def flush(self) -> None:
+        """Write the pending MCAP chunk and push it to the disk.
+
+        rosbags buffers messages in memory until a chunk reaches 1 MiB; after this call every
+        message written so far survives a SIGKILL (``activesurv bag reindex`` recovers them).
+        """
+        storage = getattr(self.writer, 'storage', None)
+        chunk = getattr(storage, 'chunk', None)
+        if storage is None or chunk is None or not hasattr(storage, 'close_chunk'):
+            return
+        if chunk.bio.tell():
+            storage.close_chunk()
+        storage.bio.flush()
+        os.fsync(storage.bio.fileno())
+
     def close(self) -> None:
         self.writer.close()
 
@@ -126,6 +142,13 @@ def read_bag(path: Path, topics: set[str] | None = None) -> Iterator[BagMessage]
     """
     if not Path(path).exists():
         raise BagError(f'no bag at {path}')
+    from activesurv_bringup.salvage import needs_reindex
+
+    if needs_reindex(Path(path)):
+        raise BagError(
+            f'bag {path} has no metadata.yaml (its recorder was killed?); '
+            f'recover it with: activesurv bag reindex {path}'
+        )
     ts = typestore()
     try:
         with Reader(path) as reader:

@@ -4,10 +4,12 @@
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
-        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--rtf X] [--image-rate HZ] [--compose]
+        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
+        [--rtf X] [--image-rate HZ] [--compose]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
+    activesurv bag reindex BAG
     activesurv stages {probe,move,emulate} ...
 """
 
@@ -47,6 +49,13 @@ def _build_parser() -> argparse.ArgumentParser:
         default=[],
         help='CAMERA:KIND[:MAGNITUDE]; kinds: bias, noise, frozen, dead, flip',
     )
+    exp.add_argument(
+        '--kill',
+        action='append',
+        default=[],
+        help='NODE@T[:RESTART]: SIGKILL a node at simulated time T, restart it at RESTART '
+        '(graph mode), e.g. cam2_imager@3.5:6 or fusion@4:5',
+    )
     exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
@@ -71,6 +80,13 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
     demo.add_argument('--rtf', type=float, default=0.5)
 
+    bag = sub.add_parser('bag', help='bag tools (reindex a bag whose recorder was killed)')
+    bag_sub = bag.add_subparsers(dest='bag_command', required=True)
+    rix = bag_sub.add_parser(
+        'reindex', help='rebuild index and metadata.yaml; the original goes to BAG.damaged'
+    )
+    rix.add_argument('bag', type=Path)
+
     stages = sub.add_parser('stages', help='commissioning of stage controllers (probe, move)')
     from activesurv_stages.cli import add_arguments
 
@@ -83,9 +99,14 @@ def run_experiment(
 ) -> dict[str, object]:
     from activesurv_bringup.evaluation import results_document, write_results
     from activesurv_bringup.experiment import load_experiment
-    from activesurv_bringup.faults import parse_fault
+    from activesurv_bringup.faults import parse_fault, parse_kill
 
     faults = [parse_fault(f) for f in getattr(args, 'fault', [])]
+    kills = [parse_kill(k) for k in getattr(args, 'kill', [])]
+    if kills and args.mode != 'graph':
+        from activesurv_bringup.errors import ConfigError
+
+        raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
     exp = load_experiment(
         set_name, system, seed, getattr(args, 'trajectory', None), getattr(args, 'expect', None)
     )
@@ -126,6 +147,7 @@ def run_experiment(
             faults=faults,
             progress=say,
             compose=getattr(args, 'compose', False),
+            kills=kills,
         )
         doc = load_run(out)
     print(
@@ -160,6 +182,11 @@ def main(argv: list[str] | None = None) -> int:
                     f'{r["replayed_status"]!s:>9} {1e3 * d:16.6f}'
                 )
             print(f'\nreplayed bag: {new}')
+            return 0
+        if args.command == 'bag':
+            from activesurv_bringup.salvage import reindex
+
+            print(json.dumps(reindex(args.bag).as_dict(), indent=2))
             return 0
         if args.command == 'report':
             from activesurv_bringup.report import report, summary_table

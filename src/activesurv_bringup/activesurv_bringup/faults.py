@@ -53,3 +53,45 @@ def parse_fault(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', '
     if kind == 'noise' and magnitude < 0:
         raise ConfigError(f'fault {text!r}: noise std must be >= 0')
     return Fault(cam, kind, magnitude)
+
+
+@dataclass(frozen=True)
+class Kill:
+    """A node killed (SIGKILL) at simulated time ``at`` and, optionally, restarted later."""
+
+    node: str
+    at: float
+    restart_at: float | None = None
+
+
+KILLABLE = ('fusion', 'predictor', 'dispatcher', 'recorder', 'overhead_camera')
+
+
+def parse_kill(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', 'cam4')) -> Kill:
+    """Parse ``NODE@T[:RESTART]`` (simulated seconds), e.g. ``cam2_imager@3.5:6``.
+
+    NODE is a node of the graph: ``fusion``, ``dispatcher``, ``predictor``, ``recorder``,
+    ``overhead_camera`` or ``camN_imager``, ``camN_stage``, ``camN_camera``.
+
+    Raises:
+        ConfigError: with what is wrong and what is allowed.
+    """
+    node, sep, when = text.partition('@')
+    per_camera = tuple(f'{c}_{n}' for c in cameras for n in ('imager', 'stage', 'camera'))
+    if not sep:
+        raise ConfigError(f'kill {text!r}: expected NODE@T[:RESTART], e.g. cam2_imager@3.5:6')
+    if node not in KILLABLE + per_camera:
+        raise ConfigError(
+            f'kill {text!r}: unknown node {node!r}; nodes are {list(KILLABLE)} and '
+            f'CAM_imager, CAM_stage, CAM_camera for CAM in {list(cameras)}'
+        )
+    parts = when.split(':')
+    try:
+        times = [float(p) for p in parts]
+    except ValueError as exc:
+        raise ConfigError(f'kill {text!r}: times must be numbers (simulated s)') from exc
+    if len(times) > 2 or not all(math.isfinite(t) and t >= 0 for t in times):
+        raise ConfigError(f'kill {text!r}: expected T or T:RESTART, finite and >= 0')
+    if len(times) == 2 and times[1] <= times[0]:
+        raise ConfigError(f'kill {text!r}: the restart must come after the kill')
+    return Kill(node, times[0], times[1] if len(times) == 2 else None)

@@ -10,6 +10,7 @@ reverse order, the recorder last.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
@@ -19,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_bringup.experiment import Experiment
-from activesurv_bringup.faults import Fault
+from activesurv_bringup.faults import Fault, Kill
 from activesurv_bringup.launcher import Launcher, NodeSpec
 
 if TYPE_CHECKING:
@@ -127,6 +128,7 @@ def graph_specs(
                 **sim,
                 'collect_timeout': float(cfg['fusion']['collect_timeout']),
                 'z_sigma': float(cfg['fusion']['z_sigma']),
+                'journal': str(bag.parent / 'logs' / 'fusion.journal'),
             },
         ),
     ]
@@ -211,6 +213,7 @@ class _Monitor:
         import rclpy
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import String
 
         from activesurv_interfaces.msg import TargetEstimate
 
@@ -225,6 +228,8 @@ class _Monitor:
             self._on_clock,
             QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT),
         )
+        self.recorded: dict[str, int] = {}
+        self.node.create_subscription(String, '/activesurv/recorder_status', self._on_recorder, 10)
         self.node.create_subscription(
             TargetEstimate,
             'target_estimate',
@@ -238,6 +243,10 @@ class _Monitor:
 
     def _on_clock(self, msg: Any) -> None:
         self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
+
+    def _on_recorder(self, msg: Any) -> None:
+        with contextlib.suppress(ValueError, AttributeError):
+            self.recorded = {str(k): int(v) for k, v in json.loads(msg.data).items()}
 
     def _on_estimate(self, msg: Any) -> None:
         self.estimates[int(msg.demand_index)] = msg
@@ -257,6 +266,32 @@ class _Monitor:
         self.node.destroy_node()
 
 
+def _chaos(
+    launcher: Launcher,
+    kills: Sequence[Kill],
+    killed: set[Kill],
+    restarted: set[Kill],
+    specs: dict[str, NodeSpec],
+    sim_time: float,
+    progress: Progress,
+) -> None:
+    """Kill and restart nodes when simulated time reaches their instants."""
+    for k in kills:
+        fqn = specs[k.node].fqn
+        if k not in killed and sim_time >= k.at:
+            proc = launcher.processes[fqn]
+            proc.stopped_on_purpose = True
+            proc.kill()
+            killed.add(k)
+            progress(f'killed {k.node} (SIGKILL) at simulated time {sim_time:.2f} s')
+        due = k.restart_at is not None and sim_time >= k.restart_at
+        if due and k in killed and k not in restarted:
+            launcher.processes[fqn].process.wait(5.0)
+            launcher.start_node(specs[k.node])
+            restarted.add(k)
+            progress(f'restarted {k.node} at simulated time {sim_time:.2f} s')
+
+
 def run_graph(
     exp: Experiment,
     out_dir: Path,
@@ -266,11 +301,12 @@ def run_graph(
     progress: Progress = print,
     startup_timeout: float = 60.0,
     compose: bool = False,
+    kills: Sequence[Kill] = (),
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
     With ``compose`` every node runs in this process on one executor instead of in its own
-    process.
+    process. ``kills`` SIGKILL nodes at simulated instants and restart them (chaos testing).
 
     Raises:
         NodeDiedError: if a node dies, or the graph does not come up in time.
@@ -282,6 +318,16 @@ def run_graph(
     if bag.exists():
         raise NodeDiedError(f'{bag} exists: give a new --out directory')
     specs = graph_specs(exp, bag, rtf, image_rate, faults)
+    by_name = {s.name: s for s in specs[:-1]}
+    for k in kills:
+        if k.node not in by_name:
+            raise NodeDiedError(f'cannot kill {k.node}: it is not running in this run')
+    if kills and compose:
+        raise NodeDiedError('killing nodes needs one process per node (leave out --compose)')
+    killed: set[Kill] = set()
+    restarted: set[Kill] = set()
+    (out_dir / 'logs').mkdir(exist_ok=True)
+    (out_dir / 'logs' / 'fusion.journal').unlink(missing_ok=True)
     env = dict(os.environ)
     owns_rclpy = not rclpy.ok()
     if owns_rclpy:
@@ -319,6 +365,8 @@ def run_graph(
         wall_limit = time.monotonic() + (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0
         shown = -1
         while len(monitor.estimates) < m and monitor.sim_time < end_sim:
+            if isinstance(launcher, Launcher):
+                _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
             launcher.check()
             monitor.spin(0.25)
             if len(monitor.estimates) != shown:
@@ -331,6 +379,13 @@ def run_graph(
                     f'the run did not finish in time (simulated time '
                     f'{monitor.sim_time:.1f} s of {end_sim:.1f} s)'
                 )
+        # Stop only when the recorder has every estimate (a restarted node is matched late).
+        deadline = time.monotonic() + 20.0
+        while monitor.recorded.get('/target_estimate', 0) < len(monitor.estimates):
+            if time.monotonic() > deadline:
+                progress('the recorder is missing estimates after 20 s; stopping anyway')
+                break
+            monitor.spin(0.25)
         monitor.spin(0.5)  # the recorder gets the last messages
     finally:
         monitor.close()

@@ -79,7 +79,7 @@ class NodeProcess:
         params = write_params_file(spec, workdir)
         self.command = node_command(spec, params)
         self.log_path = workdir / f'{spec.fqn.strip("/").replace("/", "__")}.log'
-        self._log: IO[bytes] = open(self.log_path, 'wb')  # noqa: SIM115 - closed in stop()
+        self._log: IO[bytes] = open(self.log_path, 'ab')  # noqa: SIM115 - closed in stop()
         self.process = subprocess.Popen(
             self.command,
             stdout=self._log,

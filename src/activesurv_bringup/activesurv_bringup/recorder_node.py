@@ -11,7 +11,11 @@ read them). The ``run_info`` parameter (a JSON document) is stored on ``/actives
 On SIGINT/SIGTERM the bag is closed cleanly.
 
 Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
-exclude (topics), discovery_period (s), run_info (JSON).
+exclude (topics), discovery_period (s), run_info (JSON), flush_period (s).
+
+A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
+every flush writes a complete MCAP chunk and fsyncs it; ``activesurv bag reindex BAG``
+rebuilds the index and ``metadata.yaml`` from what is on disk.
 """
 
 from __future__ import annotations
@@ -40,9 +44,12 @@ from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     QosReliability,
     QosTime,
 )
+from std_msgs.msg import String
 
 from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, open_writer
 from activesurv_bringup.errors import BagError
+
+STATUS_TOPIC = '/activesurv/recorder_status'
 
 
 def message_class(type_name: str) -> Any:
@@ -62,6 +69,9 @@ class RecorderNode(Node):
         )
         self.declare_parameter('discovery_period', 0.5, d(description='s between discoveries'))
         self.declare_parameter('run_info', '{}', d(description='JSON stored in the bag'))
+        self.declare_parameter(
+            'flush_period', 0.5, d(description='s between flushes to disk (SIGKILL loses less)')
+        )
         self.declare_parameter(
             'thin_topics',
             ['/overhead/image_raw', '/overhead/camera_info'],
@@ -91,6 +101,20 @@ class RecorderNode(Node):
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
         self._discover()
+        flush_period = float(g('flush_period').value)
+        if not flush_period > 0.0:
+            raise BagError(f'flush_period must be > 0 s, got {flush_period}')
+        self.create_timer(flush_period, self._flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.exclude.add(STATUS_TOPIC)
+        self._status_pub = self.create_publisher(String, STATUS_TOPIC, 10)
+
+    def _flush(self) -> None:
+        with self._lock:
+            if self.bag is not None:
+                self.bag.flush()
+            counts = dict(self.counts)
+        # Orchestrators wait on this before stopping the graph (nothing left unrecorded).
+        self._status_pub.publish(String(data=json.dumps(counts)))
 
     def _qos(self, topic: str) -> tuple[QoSProfile, Qos]:
         infos = self.get_publishers_info_by_topic(topic)

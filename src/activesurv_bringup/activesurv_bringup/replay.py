@@ -88,7 +88,7 @@ def run_replay(bag: Path, out_dir: Path, rtf: float = 0.5, progress: Progress = 
         BagError: for an unreadable bag; NodeDiedError if a replay node dies.
     """
     import rclpy
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
     info = run_info(bag)
@@ -102,8 +102,12 @@ def run_replay(bag: Path, out_dir: Path, rtf: float = 0.5, progress: Progress = 
     if owns:
         rclpy.init()
     node = rclpy.create_node('activesurv_replayer')
+    # Transient local matches every subscriber (latched blackboard ones and volatile ones).
     qos = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE
+        history=HistoryPolicy.KEEP_LAST,
+        depth=50,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
     pubs: dict[str, Any] = {}
     for m in messages:

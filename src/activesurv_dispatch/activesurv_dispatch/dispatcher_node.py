@@ -3,6 +3,7 @@
 Subscribes:
     demand_horizon (activesurv_interfaces/DemandHorizon, latched): the rolling horizon.
     <cam>/stage/joint_states (sensor_msgs/JointState): each camera's stage state.
+    <cam>/imager/heartbeat (std_msgs/Header): each imager's liveness beat.
 Publishes:
     <cam>/stage/goal (activesurv_interfaces/StageGoal, latched): desired stage positions.
     capture_request (activesurv_interfaces/CaptureRequest): ``capture_lead`` s before each
@@ -11,7 +12,9 @@ Publishes:
         (visualization_msgs/MarkerArray), /diagnostics.
 Every horizon update triggers planning (assignment, preassignment, replanning); a timer issues
 capture requests and retires serviced demands. A camera whose stage state is older than
-``camera_timeout`` s is taken out of dispatching and put back when its state returns.
+``camera_timeout`` s, or whose imager has beaten before and then fell silent for as long, is
+taken out of dispatching (its frozen assignments are reassigned at once) and put back when both
+are heard again.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from activesurv_dispatch import qos, topics
@@ -67,8 +71,8 @@ class DispatcherNode(Node):
         self.declare_parameter('settle_time', 0.1, d(description='s to be still before capture'))
         self.declare_parameter(
             'camera_timeout',
-            1.0,
-            d(description='s without stage state before a camera is dropped'),
+            0.5,
+            d(description='s without stage state or imager heartbeat before a camera is dropped'),
         )
         self.declare_parameter('frame_id', 'world', d(description='frame of plans and markers'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -89,6 +93,8 @@ class DispatcherNode(Node):
         self.frame_id = str(g('frame_id').value)
         self.joints: dict[str, np.ndarray] = {}
         self.joint_stamp: dict[str, float] = {}
+        self.beat_stamp: dict[str, float] = {}
+        self.down: dict[str, str] = {}  # camera -> why it is out of dispatching
         self.demands: dict[int, Demand] = {}
         self.horizon: list[Demand] = []
         self.plan: Plan | None = None
@@ -100,7 +106,7 @@ class DispatcherNode(Node):
             for s in self.setup.sensors
         }
         self._capture_pub = self.create_publisher(
-            CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS
+            CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS_LATCHED
         )
         self._plan_pub = self.create_publisher(DispatchPlan, topics.DISPATCH_PLAN, qos.LATCHED)
         self._marker_pub = self.create_publisher(MarkerArray, topics.MARKERS, qos.LATCHED)
@@ -116,6 +122,9 @@ class DispatcherNode(Node):
                 topics.joint_states(s.camera_id),
                 self._joint_callback(s.camera_id),
                 qos.SENSOR,
+            )
+            self.create_subscription(
+                Header, topics.heartbeat(s.camera_id), self._beat_callback(s.camera_id), qos.SENSOR
             )
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
@@ -151,6 +160,12 @@ class DispatcherNode(Node):
 
         return callback
 
+    def _beat_callback(self, camera_id: str) -> Callable[[Header], None]:
+        def callback(msg: Header) -> None:
+            self.beat_stamp[camera_id] = self._now()
+
+        return callback
+
     def _on_joints(self, camera_id: str, msg: JointState) -> None:
         names = self.setup.sensor(camera_id).joint_names
         table = dict(zip(msg.name, msg.position, strict=False))
@@ -158,13 +173,10 @@ class DispatcherNode(Node):
         if not np.all(np.isfinite(q)):
             self.counts['bad_joint_states'] += 1
             return
-        back = camera_id not in self.joints or camera_id in self.planner.excluded
         self.joints[camera_id] = q
         self.joint_stamp[camera_id] = self._now()
-        if back and camera_id in self.planner.excluded:
-            self.planner.exclude(camera_id, dead=False)
-            self.motion.forget(camera_id)
-            self.get_logger().info(f'{camera_id} is back: dispatching it again')
+        if camera_id in self.down:
+            self._check_alive(self._now())
 
     def _on_horizon(self, msg: DemandHorizon) -> None:
         demands = horizon_to_demands(msg)
@@ -195,16 +207,35 @@ class DispatcherNode(Node):
             plan_markers(plan, self.setup, self.joints, self.horizon, self.frame_id)
         )
 
+    def _check_alive(self, now: float) -> None:
+        """Take cameras whose stage or imager fell silent out of dispatching; re-admit them."""
+        timeout = float(self.get_parameter('camera_timeout').value)
+        changed = False
+        for cid, stamp in self.joint_stamp.items():
+            why = ''
+            if now - stamp > timeout:
+                why = f'no stage state for {timeout:g} s'
+            elif cid in self.beat_stamp and now - self.beat_stamp[cid] > timeout:
+                why = f'no imager heartbeat for {timeout:g} s'
+            if why and cid not in self.down:
+                self.down[cid] = why
+                self.planner.exclude(cid)
+                self.counts['cameras_lost'] += 1
+                self.get_logger().warning(f'{cid}: {why}; dispatching without it (t={now:.2f} s)')
+                changed = True
+            elif not why and cid in self.down:
+                del self.down[cid]
+                self.planner.exclude(cid, dead=False)
+                self.motion.forget(cid)
+                self.counts['cameras_back'] += 1
+                self.get_logger().info(f'{cid} is back: dispatching it again (t={now:.2f} s)')
+                changed = True
+        if changed:
+            self._replan()
+
     def _on_tick(self) -> None:
         now = self._now()
-        for cid, stamp in list(self.joint_stamp.items()):
-            timeout = float(self.get_parameter('camera_timeout').value)
-            if now - stamp > timeout and cid not in self.planner.excluded:
-                self.planner.exclude(cid)
-                self.get_logger().warning(
-                    f'{cid}: no stage state for {timeout:g} s; dispatching without it'
-                )
-                self._replan()
+        self._check_alive(now)
         if self.plan is not None:
             capture = self.scheduler.due(now, self.plan, self.demands)
             if capture is not None:
@@ -241,6 +272,7 @@ class DispatcherNode(Node):
             KeyValue(key='replans', value=str(self.planner.replans)),
             KeyValue(key='cameras_with_state', value=str(sorted(self.joints))),
             KeyValue(key='cameras_down', value=str(excluded)),
+            KeyValue(key='why_down', value=str(self.down)),
         ]
         arr = DiagnosticArray(status=[s])
         arr.header.stamp = self.get_clock().now().to_msg()

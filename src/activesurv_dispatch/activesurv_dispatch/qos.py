@@ -24,6 +24,14 @@ EVENTS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 SENSOR = qos_profile_sensor_data
+# Per-demand events on the blackboard: publishers keep the last 50 for late joiners, so a
+# restarted fusion node re-collects the requests and observations of recent demands.
+EVENTS_LATCHED = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=50,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 DIAGNOSTICS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,

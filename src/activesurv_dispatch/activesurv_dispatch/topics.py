@@ -13,5 +13,9 @@ def goal(camera_id: str) -> str:
     return f'{camera_id}/stage/goal'
 
 
+def heartbeat(camera_id: str) -> str:
+    return f'{camera_id}/imager/heartbeat'
+
+
 def joint_states(camera_id: str) -> str:
     return f'{camera_id}/stage/joint_states'

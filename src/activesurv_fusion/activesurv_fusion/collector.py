@@ -10,6 +10,7 @@ without an answer. Late observations of a demand already answered are counted an
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -87,6 +88,12 @@ class DemandCollector:
 
     def is_closed(self, index: int) -> bool:
         return index in self._closed
+
+    def mark_answered(self, indices: Iterable[int]) -> None:
+        """Demands answered elsewhere (by this node before a restart): never answer them again."""
+        for i in indices:
+            self._closed.add(int(i))
+            self._open.pop(int(i), None)
 
     def request(
         self,

@@ -9,11 +9,17 @@ Publishes:
     target_pose (geometry_msgs/PoseWithCovarianceStamped): the fused pose when there is one.
     /diagnostics (diagnostic_msgs/DiagnosticArray).
 Parameters: see ``config/fusion.yaml``.
+
+Requests and observations are subscribed transient-local (their publishers keep the last 50):
+a fusion node restarted after a crash receives those of the recent demands and answers the ones
+its predecessor left open. With the ``journal`` parameter (a file; the graph runs set it) the
+answered demand indices survive the crash, so no demand is answered twice.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 from collections import Counter
@@ -46,6 +52,22 @@ from activesurv_fusion.conversions import (
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
 
+def read_journal(path: str) -> set[int]:
+    """Indices in the journal; a torn last line (a kill mid-write) is ignored."""
+    try:
+        with open(path, encoding='utf-8') as f:
+            return {int(line) for line in f.read().split('\n') if line.strip().isdigit()}
+    except FileNotFoundError:
+        return set()
+
+
+def append_journal(path: str, index: int) -> None:
+    with open(path, 'a', encoding='utf-8') as f:
+        f.write(f'{index}\n')
+        f.flush()
+        os.fsync(f.fileno())
+
+
 class FusionNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('fusion', **kwargs)
@@ -76,8 +98,24 @@ class FusionNode(Node):
         self.declare_parameter(
             'frame_id', 'world', ParameterDescriptor(description='frame of the published poses')
         )
+        self.declare_parameter(
+            'journal',
+            '',
+            ParameterDescriptor(
+                description='file of answered demand indices (kept across restarts); empty: none',
+                read_only=True,
+            ),
+        )
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._collector = DemandCollector(float(self.get_parameter('collect_timeout').value))
+        self._journal = str(self.get_parameter('journal').value)
+        if self._journal:
+            done = read_journal(self._journal)
+            self._collector.mark_answered(done)
+            if done:
+                self.get_logger().info(
+                    f'restarted: {len(done)} demands were answered before, up to {max(done)}'
+                )
 
         self._estimate_pub = self.create_publisher(
             TargetEstimate, topics.TARGET_ESTIMATE, qos.RESULTS
@@ -89,10 +127,13 @@ class FusionNode(Node):
             DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
         self.create_subscription(
-            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS_LATCHED
         )
         self.create_subscription(
-            MarkerObservation, topics.MARKER_OBSERVATIONS, self._on_observation, qos.EVENTS
+            MarkerObservation,
+            topics.MARKER_OBSERVATIONS,
+            self._on_observation,
+            qos.EVENTS_LATCHED,
         )
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
@@ -155,6 +196,8 @@ class FusionNode(Node):
             result: DemandResult = resolve(batch, z=z, max_faulty=self._max_faulty())
             self._status_counts[result.status.name] += 1
             self._estimate_pub.publish(result_to_estimate(result, frame))
+            if self._journal:
+                append_journal(self._journal, result.index)
             pose = result_to_pose(result, frame)
             if pose is not None:
                 self._pose_pub.publish(pose)

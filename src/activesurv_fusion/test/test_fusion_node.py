@@ -41,8 +41,10 @@ def test_request_and_observations_give_an_estimate(
     peer = rclpy_context.create_node('fusion_test_peer')
     got: list[TargetEstimate] = []
     try:
-        req_pub = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
-        obs_pub = peer.create_publisher(MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS)
+        req_pub = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS_LATCHED)
+        obs_pub = peer.create_publisher(
+            MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
+        )
         peer.create_subscription(TargetEstimate, topics.TARGET_ESTIMATE, got.append, qos.RESULTS)
         assert spin_until(
             [fusion_node, peer],

@@ -8,7 +8,8 @@ publishes the observation with a failure status and reason instead of staying si
 
 Subscribes: capture_request, <camera_id>/image_raw, <camera_id>/camera_info,
     <camera_id>/stage/joint_states (unless the mount is static).
-Publishes: marker_observations, /diagnostics.
+Publishes: marker_observations, <camera_id>/imager/heartbeat (std_msgs/Header at 10 Hz of the
+    node clock: the dispatcher stops assigning this camera when the beat stops), /diagnostics.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Header
 
 from activesurv_imaging import qos, topics
 from activesurv_imaging.camera_model import CameraModel
@@ -109,7 +111,7 @@ class ImagerNode(Node):
         self._rng = np.random.default_rng(zlib.crc32(self.camera_id.encode()))  # stable seed
 
         self._obs_pub = self.create_publisher(
-            MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS
+            MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
         )
         self._diag_pub = self.create_publisher(
             DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
@@ -132,7 +134,11 @@ class ImagerNode(Node):
             self.create_subscription(
                 JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
             )
+        self._beat_pub = self.create_publisher(
+            Header, topics.heartbeat(self.camera_id), qos.SENSOR
+        )
         self.create_timer(0.05, self._on_tick)
+        self.create_timer(0.1, self._beat)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -249,6 +255,11 @@ class ImagerNode(Node):
         )
         return perturb(
             obs, float(g('inject_bias_x').value), float(g('inject_noise').value), self._rng
+        )
+
+    def _beat(self) -> None:
+        self._beat_pub.publish(
+            Header(stamp=self.get_clock().now().to_msg(), frame_id=self.camera_id)
         )
 
     def _on_tick(self) -> None:

@@ -16,5 +16,10 @@ def camera_info(camera_id: str) -> str:
     return f'{camera_id}/camera_info'
 
 
+def heartbeat(camera_id: str) -> str:
+    """The imager's liveness beat (std_msgs/Header, frame_id = camera id, 10 Hz)."""
+    return f'{camera_id}/imager/heartbeat'
+
+
 def joint_states(camera_id: str) -> str:
     return f'{camera_id}/stage/joint_states'

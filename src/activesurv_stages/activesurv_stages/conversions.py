@@ -23,15 +23,16 @@ def sec_to_time(t: float) -> Time:
 def goal_items(msg: StageGoal) -> list[tuple[str, float, float | None]]:
     """(joint, position, velocity limit or None) for each joint of a goal.
 
-    Missing velocities mean the axis maximum; a goal whose arrays disagree in length yields no
-    items for the unmatched joints.
+    Missing or zero velocities mean the axis maximum; NaN, inf or negative velocities are
+    passed on so that the axis refuses them with a reason. A goal whose arrays disagree in
+    length yields no items for the unmatched joints.
     """
     out = []
     for i, name in enumerate(msg.joint_names):
         if i >= len(msg.positions):
             break
         v = msg.max_velocities[i] if i < len(msg.max_velocities) else 0.0
-        out.append((str(name), float(msg.positions[i]), float(v) if v > 0.0 else None))
+        out.append((str(name), float(msg.positions[i]), None if v == 0.0 else float(v)))
     return out
 
 

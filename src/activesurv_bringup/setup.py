@@ -27,6 +27,7 @@ setup(
         'console_scripts': [
             'activesurv = activesurv_bringup.cli:main',
             'recorder = activesurv_bringup.recorder_node:main',
+            'image_load = activesurv_bringup.load_node:main',
         ],
     },
 )

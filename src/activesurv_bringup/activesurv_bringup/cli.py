@@ -5,7 +5,7 @@
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
-        [--rtf X] [--image-rate HZ] [--compose]
+        [--rtf X] [--image-rate HZ] [--compose] [--hosts {single,netns}]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
@@ -19,7 +19,9 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from activesurv_bringup.errors import BringupError
 
@@ -55,6 +57,12 @@ def _build_parser() -> argparse.ArgumentParser:
         default=[],
         help='NODE@T[:RESTART]: SIGKILL a node at simulated time T, restart it at RESTART '
         '(graph mode), e.g. cam2_imager@3.5:6 or fusion@4:5',
+    )
+    exp.add_argument(
+        '--hosts',
+        choices=('single', 'netns'),
+        default='single',
+        help='netns: each camera on its own "host" (network namespace, needs root), over UDP',
     )
     exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
     exp.add_argument(
@@ -139,22 +147,59 @@ def run_experiment(
         def say(text: str) -> None:
             print(f'  Set {set_name} {system}: {text}', flush=True)
 
-        run_graph(
-            exp,
-            out,
-            rtf=args.rtf,
-            image_rate=getattr(args, 'image_rate', 2.0),
-            faults=faults,
-            progress=say,
-            compose=getattr(args, 'compose', False),
-            kills=kills,
-        )
-        doc = load_run(out)
+        def graph(hosts: Any = None) -> None:
+            run_graph(
+                exp,
+                out,
+                rtf=args.rtf,
+                image_rate=getattr(args, 'image_rate', 2.0),
+                faults=faults,
+                progress=say,
+                compose=getattr(args, 'compose', False),
+                kills=kills,
+                hosts=hosts,
+            )
+
+        if getattr(args, 'hosts', 'single') == 'netns':
+            doc = _run_on_hosts(exp, out, graph, say)
+        else:
+            graph()
+            doc = load_run(out)
     print(
         f'  Set {set_name} {system}: done in {time.monotonic() - started:.1f} s -> '
         f'{out / "results.json"}',
         flush=True,
     )
+    return doc
+
+
+def _run_on_hosts(
+    exp: Any, out: Path, graph: Callable[[Any], None], say: Callable[[str], None]
+) -> dict[str, Any]:
+    """Run the graph over network namespaces: core plus one host per camera, DDS over UDP."""
+    import os
+
+    from activesurv_bringup.errors import ConfigError
+    from activesurv_bringup.evaluation import write_results
+    from activesurv_bringup.netns import NetnsHosts, unavailable_reason
+    from activesurv_bringup.report import load_run
+
+    reason = unavailable_reason()
+    if reason is not None:
+        raise ConfigError(f'--hosts netns: network namespaces cannot be made here: {reason}')
+    cameras = [s.camera_id for s in exp.setup.sensors]
+    with NetnsHosts(['core', *cameras]) as hosts:
+        # Discovery over the bridge (multicast on the subnet); no shared memory between hosts.
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SUBNET'
+        os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+        hosts.enter('core')
+        say(f'hosts: {hosts.addresses}')
+        graph(hosts)
+        traffic = hosts.traffic_bytes()
+    doc = load_run(out)
+    doc['hosts'] = {'mode': 'netns', 'addresses': hosts.addresses, 'traffic_bytes': traffic}
+    write_results(out / 'results.json', doc)
+    say(f'bytes through each host interface: {traffic}')
     return doc
 
 

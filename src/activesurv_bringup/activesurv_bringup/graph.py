@@ -25,6 +25,7 @@ from activesurv_bringup.launcher import Launcher, NodeSpec
 
 if TYPE_CHECKING:
     from activesurv_bringup.compose import Composition
+    from activesurv_bringup.netns import NetnsHosts
 from activesurv_dispatch.sensors import Sensor
 
 Progress = Callable[[str], None]
@@ -61,8 +62,14 @@ def graph_specs(
     rtf: float = 1.0,
     image_rate: float = 2.0,
     faults: Sequence[Fault] = (),
+    thin: Sequence[str] = (),
+    split_hosts: bool = False,
 ) -> list[NodeSpec]:
-    """Every node of the run with its parameters, in start order (xy table last)."""
+    """Every node of the run with its parameters, in start order (xy table last).
+
+    ``thin`` adds topics the recorder thins to ``image_rate``; with ``split_hosts`` each
+    camera's nodes go on host ``camN`` and the rest on ``core``.
+    """
     cfg = exp.config
     sim = {'use_sim_time': True}
     obj = cfg['object']
@@ -78,6 +85,7 @@ def graph_specs(
                 'output': str(bag),
                 'image_rate': float(image_rate),
                 'run_info': json.dumps(run_info(exp, faults)),
+                'thin_topics': ['/overhead/image_raw', '/overhead/camera_info', *thin],
             },
         ),
         NodeSpec(
@@ -183,6 +191,13 @@ def graph_specs(
         specs.append(
             NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
         )
+    if split_hosts:
+        from dataclasses import replace
+
+        specs = [
+            replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
+            for s in specs
+        ]
     spec = exp.actual_spec
     table: dict[str, Any] = {
         'path_type': str(spec['type']),
@@ -202,7 +217,10 @@ def graph_specs(
         table['csv_file'] = str(spec['csv'])
     else:
         table['path_points'] = [float(v) for v in spec['points']]
-    specs.append(NodeSpec('xy_table', 'activesurv_stages.xy_table_node', parameters=table))
+    host = 'core' if split_hosts else ''
+    specs.append(
+        NodeSpec('xy_table', 'activesurv_stages.xy_table_node', parameters=table, host=host)
+    )
     return specs
 
 
@@ -302,11 +320,17 @@ def run_graph(
     startup_timeout: float = 60.0,
     compose: bool = False,
     kills: Sequence[Kill] = (),
+    extra: Sequence[NodeSpec] = (),
+    thin: Sequence[str] = (),
+    hosts: NetnsHosts | None = None,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
     With ``compose`` every node runs in this process on one executor instead of in its own
     process. ``kills`` SIGKILL nodes at simulated instants and restart them (chaos testing).
+    ``extra`` nodes (e.g. load generators) start with the graph; ``thin`` topics are thinned in
+    the bag. With ``hosts`` (namespaces ``core``, ``cam1`` ...; this process must already be in
+    ``core``) every camera's nodes run on their own host.
 
     Raises:
         NodeDiedError: if a node dies, or the graph does not come up in time.
@@ -317,7 +341,9 @@ def run_graph(
     bag = out_dir / 'bag'
     if bag.exists():
         raise NodeDiedError(f'{bag} exists: give a new --out directory')
-    specs = graph_specs(exp, bag, rtf, image_rate, faults)
+    specs = graph_specs(exp, bag, rtf, image_rate, faults, thin, split_hosts=hosts is not None)
+    if extra:
+        specs = specs[:-1] + list(extra) + specs[-1:]
     by_name = {s.name: s for s in specs[:-1]}
     for k in kills:
         if k.node not in by_name:
@@ -339,7 +365,12 @@ def run_graph(
 
         launcher = Composition()
     else:
-        launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env)
+        prefixes = (
+            {h: hosts.prefix(h) for h in hosts.names if h != 'core'} | {'core': []}
+            if hosts is not None
+            else None
+        )
+        launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
     m = len(exp.demand_times)
     try:
         if isinstance(launcher, Launcher):

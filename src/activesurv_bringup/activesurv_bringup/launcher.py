@@ -35,6 +35,7 @@ class NodeSpec:
         parameters: ROS parameters, written to a params file.
         remappings: topic remappings ``from -> to``.
         required: a required node that dies fails the whole run.
+        host: the host (network namespace) it runs on; '' for this one.
     """
 
     name: str
@@ -43,6 +44,7 @@ class NodeSpec:
     parameters: Mapping[str, Any] = field(default_factory=dict)
     remappings: Mapping[str, str] = field(default_factory=dict)
     required: bool = True
+    host: str = ''
 
     @property
     def fqn(self) -> str:
@@ -74,10 +76,16 @@ def write_params_file(spec: NodeSpec, directory: Path) -> Path | None:
 class NodeProcess:
     """A running node: its process, its log file, and how to stop it."""
 
-    def __init__(self, spec: NodeSpec, workdir: Path, env: Mapping[str, str]) -> None:
+    def __init__(
+        self,
+        spec: NodeSpec,
+        workdir: Path,
+        env: Mapping[str, str],
+        prefix: Sequence[str] = (),
+    ) -> None:
         self.spec = spec
         params = write_params_file(spec, workdir)
-        self.command = node_command(spec, params)
+        self.command = [*prefix, *node_command(spec, params)]
         self.log_path = workdir / f'{spec.fqn.strip("/").replace("/", "__")}.log'
         self._log: IO[bytes] = open(self.log_path, 'ab')  # noqa: SIM115 - closed in stop()
         self.process = subprocess.Popen(
@@ -138,8 +146,11 @@ class Launcher:
         specs: Sequence[NodeSpec],
         workdir: Path | None = None,
         env: Mapping[str, str] | None = None,
+        hosts: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
+        """``hosts`` maps a NodeSpec's host to the command prefix that runs a program there."""
         self.specs = list(specs)
+        self.hosts = dict(hosts or {})
         self.workdir = Path(workdir or tempfile.mkdtemp(prefix='activesurv-launch-'))
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.env = dict(os.environ if env is None else env)
@@ -157,7 +168,9 @@ class Launcher:
             self.start_node(spec)
 
     def start_node(self, spec: NodeSpec) -> NodeProcess:
-        proc = NodeProcess(spec, self.workdir, self.env)
+        if spec.host and spec.host not in self.hosts:
+            raise NodeDiedError(f'node {spec.fqn}: unknown host {spec.host!r}')
+        proc = NodeProcess(spec, self.workdir, self.env, self.hosts.get(spec.host, ()))
         self.processes[spec.fqn] = proc
         return proc
 

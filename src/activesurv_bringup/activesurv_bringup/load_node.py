@@ -1,0 +1,145 @@
+"""The ``image_load`` node: camera-like image streams as background load, and their receiver.
+
+``role: stream`` publishes, for each of ``camera_ids``, ``width`` x ``height`` rgb8 images at
+``rate`` Hz on ``<cam>/stream/image_raw`` (best effort, like camera drivers), each stamped with
+the wall time and numbered in ``header.frame_id`` (``cam1:17``). ``role: count`` subscribes to
+the same streams and, when stopped, writes to ``summary_file`` how many frames of each stream
+arrived and how many were lost (gaps in the numbering) and the median transport delay. The
+load benchmark runs both next to an experiment graph (``bench/bench_reliability.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import statistics
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import Image
+
+
+def stream_topic(camera_id: str) -> str:
+    return f'{camera_id}/stream/image_raw'
+
+
+class ImageLoadNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('image_load', **kwargs)
+        d = ParameterDescriptor
+        self.declare_parameter('role', 'stream', d(description='stream or count'))
+        self.declare_parameter('camera_ids', ['cam1', 'cam2', 'cam3', 'cam4'])
+        self.declare_parameter('rate', 30.0, d(description='Hz per stream'))
+        self.declare_parameter('width', 640)
+        self.declare_parameter('height', 480)
+        self.declare_parameter('summary_file', '', d(description='count role: JSON written here'))
+        g = self.get_parameter
+        self.role = str(g('role').value)
+        self.cameras = [str(c) for c in g('camera_ids').value]
+        rate = float(g('rate').value)
+        w, h = int(g('width').value), int(g('height').value)
+        if self.role not in ('stream', 'count'):
+            raise ValueError(f'role must be stream or count, got {self.role!r}')
+        if not (0.0 < rate <= 1000.0) or not (0 < w <= 8192) or not (0 < h <= 8192):
+            raise ValueError('rate must be in (0, 1000] Hz and the image size in 1..8192')
+        self.seq = dict.fromkeys(self.cameras, 0)
+        self.got: dict[str, list[int]] = {c: [] for c in self.cameras}
+        self.delay: list[float] = []
+        if self.role == 'stream':
+            rng = np.random.default_rng(0)
+            self.pixels = rng.integers(0, 255, size=(h, w, 3), dtype=np.uint8).tobytes()
+            self.size = (w, h)
+            self.pubs = {
+                c: self.create_publisher(Image, stream_topic(c), qos_profile_sensor_data)
+                for c in self.cameras
+            }
+            self.create_timer(
+                1.0 / rate, self._publish, clock=Clock(clock_type=ClockType.STEADY_TIME)
+            )
+        else:
+            for c in self.cameras:
+                self.create_subscription(
+                    Image, stream_topic(c), self._receive(c), qos_profile_sensor_data
+                )
+
+    def _publish(self) -> None:
+        w, h = self.size
+        for c, pub in self.pubs.items():
+            msg = Image(height=h, width=w, encoding='rgb8', step=3 * w)
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = f'{c}:{self.seq[c]}'
+            msg.data = self.pixels
+            pub.publish(msg)
+            self.seq[c] += 1
+
+    def _receive(self, camera_id: str) -> Any:
+        def callback(msg: Image) -> None:
+            try:
+                self.got[camera_id].append(int(msg.header.frame_id.rsplit(':', 1)[1]))
+            except (IndexError, ValueError):
+                return
+            sent = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            self.delay.append(time.time() - sent)
+
+        return callback
+
+    def summary(self) -> dict[str, Any]:
+        streams = {}
+        for c, seqs in self.got.items():
+            expected = (max(seqs) - min(seqs) + 1) if seqs else 0
+            streams[c] = {'received': len(seqs), 'expected': expected}
+        received = sum(s['received'] for s in streams.values())
+        expected = sum(s['expected'] for s in streams.values())
+        return {
+            'streams': streams,
+            'received': received,
+            'expected': expected,
+            'dropped_fraction': 1.0 - received / expected if expected else None,
+            'median_delay_ms': 1e3 * statistics.median(self.delay) if self.delay else None,
+        }
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = ImageLoadNode()
+    except ValueError as exc:
+        print(f'image_load: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stopping = False
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        while rclpy.ok() and not stopping:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        out = str(node.get_parameter('summary_file').value)
+        if node.role == 'count' and out:
+            Path(out).write_text(json.dumps(node.summary(), indent=2))
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -88,10 +88,14 @@ def test_node_started_from_the_install_space_answers(
     node = rclpy_context.create_node('colcon_probe')
     got: list[Any] = []
     try:
-        pub = node.create_publisher(
+        pub = node.create_publisher(  # the blackboard's event QoS (fusion subscribes latched)
             CaptureRequest,
             'capture_request',
-            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
+            QoSProfile(
+                depth=10,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            ),
         )
         node.create_subscription(
             TargetEstimate,

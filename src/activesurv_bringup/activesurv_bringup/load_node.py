@@ -11,23 +11,20 @@ load benchmark runs both next to an experiment graph (``bench/bench_reliability.
 from __future__ import annotations
 
 import json
-import signal
 import statistics
 import sys
 import time
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image
+
+from activesurv_bringup.spin import run_until_signal
 
 
 def stream_topic(camera_id: str) -> str:
@@ -110,35 +107,14 @@ class ImageLoadNode(Node):
         }
 
 
+def write_summary(node: ImageLoadNode) -> None:
+    out = str(node.get_parameter('summary_file').value)
+    if node.role == 'count' and out:
+        Path(out).write_text(json.dumps(node.summary(), indent=2))
+
+
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = ImageLoadNode()
-    except ValueError as exc:
-        print(f'image_load: error: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    stopping = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        stopping = True
-
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
-    try:
-        while rclpy.ok() and not stopping:
-            executor.spin_once(timeout_sec=0.05)
-    finally:
-        out = str(node.get_parameter('summary_file').value)
-        if node.role == 'count' and out:
-            Path(out).write_text(json.dumps(node.summary(), indent=2))
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_until_signal('image_load', ImageLoadNode, write_summary, args)
 
 
 if __name__ == '__main__':

@@ -22,20 +22,15 @@ from __future__ import annotations
 
 import importlib
 import json
-import signal
 import sys
 import threading
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     Qos,
     QosDurability,
@@ -48,6 +43,7 @@ from std_msgs.msg import String
 
 from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, open_writer
 from activesurv_bringup.errors import BagError
+from activesurv_bringup.spin import run_until_signal
 
 STATUS_TOPIC = '/activesurv/recorder_status'
 
@@ -197,32 +193,7 @@ class RecorderNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = RecorderNode()
-    except BagError as exc:
-        print(f'recorder: error: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    stopping = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        stopping = True
-
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
-    try:
-        while rclpy.ok() and not stopping:
-            executor.spin_once(timeout_sec=0.1)
-    finally:
-        node.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_until_signal('recorder', RecorderNode, RecorderNode.close, args, (BagError,))
 
 
 if __name__ == '__main__':

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -18,6 +19,7 @@ import pytest
 
 _DOMAIN_RANGE = range(11, 100)
 _held: list[IO[str]] = []
+_owned_home: list[Path] = []
 
 
 def _claim_domain_id() -> int:
@@ -48,6 +50,17 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
     os.environ['ACTIVESURV_TEST_ISOLATED'] = '1'
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    _owned_home.append(ros_home)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Remove this session's ROS_HOME when every test passed; keep its logs for a failure."""
+    if not _owned_home:
+        return
+    if exitstatus == 0 and os.environ.get('ACTIVESURV_KEEP_TEST_ROS_HOME') != '1':
+        shutil.rmtree(_owned_home[0], ignore_errors=True)
+    else:
+        print(f'\nROS logs of this session kept in {_owned_home[0]}')
 
 
 def pytest_report_header(config: pytest.Config) -> str:

@@ -155,11 +155,13 @@ def _shade(
     best_t: Array | None = None,
     level: Array | None = None,
     label: NDArray[np.int64] | None = None,
+    rotation: Array | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Grey level and a label (which plate and which part of its pattern) for each ray.
 
     With ``only``, just that plate is tested, against (and updating) the given depth, level and
-    label buffers.
+    label buffers. With ``rotation`` (world from camera), ``dirs`` are in the camera frame: the
+    rotation is folded into each plate's 3x3 axis matrix instead of applied to every ray.
     """
     n_rays = dirs.shape[0]
     best_t = np.full(n_rays, np.inf) if best_t is None else best_t
@@ -168,17 +170,22 @@ def _shade(
     for p_idx, plate in enumerate(scene.plates):
         if only is not None and p_idx != only:
             continue
-        denom = dirs @ plate.normal
+        # One 3x3 product gives, per ray, its component along the normal and the two in-plane
+        # axes; the hit's plate coordinates are then a0 + t * d (no n x 3 temporaries).
+        y_axis = plate.y_axis
+        axes = np.column_stack([plate.normal, plate.x_axis, y_axis])
+        comps = dirs @ (axes if rotation is None else rotation.T @ axes)
+        denom = comps[:, 0]
+        rel0 = origin - plate.center
         with np.errstate(divide='ignore', invalid='ignore'):
-            t = ((plate.center - origin) @ plate.normal) / denom
-        ok = np.isfinite(t) & (t > 0.0) & (t < best_t) & (np.abs(denom) > 1e-12)
-        if not np.any(ok):
+            t = -(rel0 @ plate.normal) / denom
+        ok = (t > 0.0) & (t < best_t) & (np.abs(denom) > 1e-12) & np.isfinite(t)
+        idx = np.flatnonzero(ok)
+        if idx.size == 0:
             continue
-        idx = np.nonzero(ok)[0]
-        hit = origin + t[idx, None] * dirs[idx]
-        rel = hit - plate.center
-        a = rel @ plate.x_axis
-        b = rel @ plate.y_axis
+        t_ok = t[idx]
+        a = (rel0 @ plate.x_axis) + t_ok * comps[idx, 1]
+        b = (rel0 @ y_axis) + t_ok * comps[idx, 2]
         inside = (np.abs(a) <= plate.half_size[0]) & (np.abs(b) <= plate.half_size[1])
         idx, a, b = idx[inside], a[inside], b[inside]
         if idx.size == 0:
@@ -266,12 +273,12 @@ class Renderer:
             depth = np.full((h, w), np.inf)
             for i, (bu0, bu1, bv0, bv1) in boxes:
                 # Each plate is tested only inside its own box; a depth buffer resolves overlaps.
-                dirs = self._rays[bv0:bv1, bu0:bu1].reshape(-1, 3) @ R.T
+                dirs = self._rays[bv0:bv1, bu0:bu1].reshape(-1, 3)
                 shape = (bv1 - bv0, bu1 - bu0)
                 d_sub = depth[bv0:bv1, bu0:bu1].reshape(-1).copy()
                 l_sub = img[bv0:bv1, bu0:bu1].reshape(-1).copy()
                 k_sub = lab[bv0:bv1, bu0:bu1].reshape(-1).copy()
-                _shade(scene, origin, dirs, i, d_sub, l_sub, k_sub)
+                _shade(scene, origin, dirs, i, d_sub, l_sub, k_sub, rotation=R)
                 depth[bv0:bv1, bu0:bu1] = d_sub.reshape(shape)
                 img[bv0:bv1, bu0:bu1] = l_sub.reshape(shape)
                 lab[bv0:bv1, bu0:bu1] = k_sub.reshape(shape)
@@ -293,7 +300,7 @@ class Renderer:
                             (ev[:, None] + ov.ravel()[None, :]).ravel(),
                         ]
                     )
-                    sub_level, _ = _shade(scene, origin, cam.rays(sub) @ R.T)
+                    sub_level, _ = _shade(scene, origin, cam.rays(sub), rotation=R)
                     img[ev, eu] = sub_level.reshape(-1, s * s).mean(axis=1)
 
         gx, gy = scene.ambient_gradient

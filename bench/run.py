@@ -41,7 +41,10 @@ def main(argv: list[str] | None = None) -> int:
         spec.loader.exec_module(module)
         print(f'bench: {area} ...', flush=True)
         t0 = time.perf_counter()
-        for key, value in module.run().items():
+        fresh = module.run()
+        for stale in [k for k in results if k.startswith(f'{area}.')]:
+            del results[stale]  # a key this version no longer writes must not linger
+        for key, value in fresh.items():
             results[f'{area}.{key}'] = value
         print(f'bench: {area} done in {time.perf_counter() - t0:.1f} s', flush=True)
     results['_machine'] = {

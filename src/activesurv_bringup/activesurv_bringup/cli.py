@@ -7,7 +7,7 @@
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
         [--rtf X] [--image-rate HZ] [--compose] [--hosts {single,netns}]
     activesurv report RUN_DIR_OR_BAG
-    activesurv replay BAG --out DIR [--rtf X]
+    activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
     activesurv bag reindex BAG
     activesurv stages {probe,move,emulate} ...
@@ -75,7 +75,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
-    rpl.add_argument('bag', type=Path, help='the bag of a run (RUN_DIR/bag)')
+    rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory')
     rpl.add_argument('--rtf', type=float, default=0.5, help='bag s per wall s')
 
@@ -216,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == 'replay':
             from activesurv_bringup.replay import compare, run_replay
 
+            if not (args.bag / 'metadata.yaml').exists() and (args.bag / 'bag').is_dir():
+                args.bag = args.bag / 'bag'  # a run directory
             new = run_replay(args.bag, args.out, args.rtf)
             rows = compare(args.bag, new)
             (args.out / 'replay.json').write_text(json.dumps(rows, indent=2))

@@ -223,9 +223,15 @@ class ImagerNode(Node):
                     'no camera_info received: intrinsics unknown',
                 )
             return None
+        latest = self.joints.latest_time
+        if (
+            isinstance(self.mount, CameraMount)
+            and not timed_out
+            and (latest is None or latest < stamp)
+        ):
+            return None  # wait for a stage state at or after the frame: interpolate, not hold
         T = self._camera_pose(stamp)
         if T is None:
-            latest = self.joints.latest_time
             if timed_out or (latest is not None and latest > stamp + 1.0):
                 return failed(
                     self.camera_id,

@@ -64,7 +64,7 @@ class SimCameraNode(Node):
         self.declare_parameter('intrinsics_file', '', d(description='camera YAML; overrides'))
         self.declare_parameter('frame_rate', 0.0, d(description='free-running Hz; 0: triggered'))
         self.declare_parameter(
-            'trigger_delay', 0.05, d(description='s after a demand instant before rendering it')
+            'trigger_delay', 0.05, d(description='min s from a demand instant to its frame')
         )
         self.declare_parameter('state_hold', 0.2, d(description='s a state may be extrapolated'))
         self.declare_parameter('seed', 0, d(description='image noise seed'))
@@ -182,11 +182,24 @@ class SimCameraNode(Node):
         self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
         self.frames_published += 1
 
+    def _covered(self, t: float) -> bool:
+        """Object and stage states are known at or after ``t`` (interpolation, no holding)."""
+        latest = [self.sim.objects.latest_time]
+        if self.sim.joint_names:
+            latest.append(self.sim.joints.latest_time)
+        return all(x is not None and x >= t for x in latest)
+
     def _on_tick(self) -> None:
+        # A triggered frame is rendered once the states around its instant have arrived, so that
+        # a loaded machine delays the frame but never renders it with a stale pose; after
+        # trigger_delay + state_hold it is rendered with the nearest states (or not at all).
+        now = self._now()
+        delay = float(self.get_parameter('trigger_delay').value)
+        hold = float(self.get_parameter('state_hold').value)
         due = [
             t
             for t in self._pending
-            if t <= self._now() - float(self.get_parameter('trigger_delay').value)
+            if now >= t + delay and (self._covered(t) or now >= t + delay + hold)
         ]
         for t in sorted(due):
             self._pending.discard(t)

@@ -127,3 +127,76 @@ def test_bad_parameters_are_rejected(nodes: Any) -> None:
     assert not imager.set_parameters([Parameter('frame_timeout', value=math.nan)])[0].successful
     assert not cam.set_parameters([Parameter('supersample', value=0)])[0].successful
     assert not cam.set_parameters([Parameter('camera_type', value='fisheye')])[0].successful
+
+
+def test_a_late_state_delays_the_frame_instead_of_rendering_a_stale_pose(
+    nodes: Any, spin_until: Callable[..., bool]
+) -> None:
+    """On a loaded machine the object states can arrive after the demand instant. The camera
+    must wait for them and render the interpolated pose, not hold the last known one."""
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import JointState
+
+    from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, ObjectState
+
+    cam, imager, _, peer = nodes
+    assert cam.set_parameters([Parameter('state_hold', value=2.0)])[0].successful
+    obj_pub = peer.create_publisher(ObjectState, topics.OBJECT_STATE, qos.SENSOR_RELIABLE)
+    js_pub = peer.create_publisher(JointState, topics.joint_states('cam2'), qos.SENSOR_RELIABLE)
+    req_pub = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+    got: list[MarkerObservation] = []
+    peer.create_subscription(MarkerObservation, topics.MARKER_OBSERVATIONS, got.append, qos.EVENTS)
+
+    def stamp(t: float) -> Time:
+        return Time(sec=int(t), nanosec=int((t - int(t)) * 1e9))
+
+    def now() -> float:
+        return float(peer.get_clock().now().nanoseconds * 1e-9)
+
+    def publish_object(t: float, marker: np.ndarray) -> None:
+        o = ObjectState(in_workspace=True)
+        o.header.stamp = stamp(t)
+        o.side_marker.x, o.side_marker.y, o.side_marker.z = marker
+        o.side_normal.y = -1.0
+        o.top_marker.x, o.top_marker.y, o.top_marker.z = marker + [0.0, 0.03, 0.03]
+        obj_pub.publish(o)
+
+    def publish_joints() -> None:
+        js = JointState(name=['cam2_yaw'], position=[YAW])
+        js.header.stamp = stamp(now())
+        js_pub.publish(js)
+
+    assert spin_until(
+        [cam, imager, peer],
+        lambda: req_pub.get_subscription_count() >= 2 and obj_pub.get_subscription_count() >= 1,
+        timeout=20.0,
+    )
+    t_j = now() + 0.3
+    last = t_j - 0.1  # the last object state before the demand instant
+    req = CaptureRequest(demand_index=7, camera_ids=['cam2'], demand_instant=stamp(t_j))
+    req.predicted_normal.y = -1.0
+    req_pub.publish(req)
+
+    def before() -> bool:
+        publish_joints()
+        publish_object(min(now(), last), MARKER)
+        return now() > t_j + 0.4  # well past trigger_delay (0.05 s)
+
+    frames = cam.frames_published
+    spin_until([cam, imager, peer], before, timeout=5.0)
+    assert cam.frames_published == frames, 'rendered before the state at the instant arrived'
+
+    shifted = MARKER + [0.012, 0.0, 0.0]
+    after = t_j + 0.05  # the marker moved 12 mm between `last` and `after`
+
+    def late() -> bool:
+        publish_joints()
+        publish_object(after, shifted)
+        return bool(got)
+
+    assert spin_until([cam, imager, peer], late, timeout=10.0)
+    obs = got[0]
+    assert obs.status == MarkerObservation.STATUS_OK, obs.reason
+    expected = MARKER + (t_j - last) / (after - last) * (shifted - MARKER)  # 8 mm along x
+    pos = np.array([obs.position.x, obs.position.y, obs.position.z])
+    assert np.linalg.norm(pos - expected) < 1e-3, (pos - MARKER, expected - MARKER)

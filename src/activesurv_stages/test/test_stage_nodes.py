@@ -3,6 +3,7 @@ and stage_bridge driving an emulated Zaber controller end to end."""
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections.abc import Callable
@@ -149,9 +150,13 @@ def test_xy_table_and_sim_stage_on_simulated_time(
     # The stage stamps its joint states with simulated time, not the wall clock.
     stamp = joints[-1].header.stamp.sec + 1e-9 * joints[-1].header.stamp.nanosec
     assert stamp < 1000.0
-    # The object starts on the path's first point and moves along it.
+    # The object starts on the path's first point (0.17, 0.06) at start_time 0.5 s and moves
+    # along it at up to 20 mm/s: the first state we receive (discovery may take a while on a
+    # loaded machine) is no further from the start than that speed allows at its stamp.
     first = objects[0].top_marker
-    assert (first.x, first.y) == pytest.approx((0.17, 0.06), abs=1e-3)
+    t_first = objects[0].header.stamp.sec + 1e-9 * objects[0].header.stamp.nanosec
+    moved = math.hypot(first.x - 0.17, first.y - 0.06)
+    assert moved <= 0.020 * max(0.0, t_first - 0.5) + 1e-3, (moved, t_first)
     assert objects[-1].top_marker.x > first.x
 
 

@@ -1,0 +1,67 @@
+"""The ``image_load`` node behind the load benchmark: its streams arrive and are counted, and
+the raw counter reads stamps and sequence numbers straight from the CDR bytes."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+
+def test_cdr_header_reads_stamp_and_frame_id() -> None:
+    from sensor_msgs.msg import Image
+
+    from activesurv_bringup.load_node import cdr_header
+
+    msg = Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(18))
+    msg.header.stamp.sec = 1795236220
+    msg.header.stamp.nanosec = 250_000_000
+    msg.header.frame_id = 'cam3:41'
+    assert cdr_header(serialize_message(msg)) == (pytest.approx(1795236220.25), 'cam3:41')
+    with pytest.raises(ValueError, match='CDR'):
+        cdr_header(b'\x00\x01\x00\x00' + bytes(4))
+    with pytest.raises(ValueError, match='frame_id'):
+        cdr_header(b'\x00\x01\x00\x00' + bytes(8) + b'\xff\xff\x00\x00' + bytes(4))
+
+
+@pytest.mark.parametrize('raw', [True, False])
+def test_streams_are_counted(
+    raw: bool, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    from activesurv_bringup.load_node import ImageLoadNode
+
+    common = [Parameter('camera_ids', value=['cam1', 'cam2']), Parameter('rate', value=40.0)]
+    small = [Parameter('width', value=64), Parameter('height', value=48)]
+    counter = ImageLoadNode(
+        parameter_overrides=[
+            *common,
+            Parameter('role', value='count'),
+            Parameter('raw', value=raw),
+        ]
+    )
+    streamer = ImageLoadNode(parameter_overrides=[*common, *small])
+    try:
+        assert spin_until(
+            [streamer, counter], lambda: all(len(v) >= 20 for v in counter.got.values()), 20.0
+        )
+    finally:
+        streamer.destroy_node()
+        counter.destroy_node()
+    summary = counter.summary()
+    assert summary['received'] >= 40
+    assert summary['expected'] >= summary['received']
+    assert 0.0 <= summary['dropped_fraction'] < 0.5  # small frames in one process: few losses
+    assert 0.0 <= summary['median_delay_ms'] < 5000.0
+    for c in ('cam1', 'cam2'):
+        seqs = counter.got[c]
+        assert seqs == sorted(seqs)  # numbered in order, per stream
+
+
+def test_bad_role_is_refused(rclpy_context: Any) -> None:
+    from activesurv_bringup.load_node import ImageLoadNode
+
+    with pytest.raises(ValueError, match='role'):
+        ImageLoadNode(parameter_overrides=[Parameter('role', value='sink')])

@@ -6,6 +6,7 @@
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
         [--rtf X] [--image-rate HZ] [--compose] [--hosts {single,netns}]
+        [--dds-profile {large-images,PATH.xml}]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -26,6 +28,10 @@ from typing import Any
 from activesurv_bringup.errors import BringupError
 
 SYSTEMS = ('static', 'medium', 'fast')
+DDS_PROFILE_HELP = (
+    'Fast DDS XML profile for every node of a graph run: large-images (shipped; camera-sized '
+    'messages over shared memory without loss) or a path'
+)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -65,6 +71,7 @@ def _build_parser() -> argparse.ArgumentParser:
         help='netns: each camera on its own "host" (network namespace, needs root), over UDP',
     )
     exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
+    exp.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
     )
@@ -87,6 +94,7 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--seed', type=int, default=1)
     demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
     demo.add_argument('--rtf', type=float, default=0.5)
+    demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
 
     bag = sub.add_parser('bag', help='bag tools (reindex a bag whose recorder was killed)')
     bag_sub = bag.add_subparsers(dest='bag_command', required=True)
@@ -147,6 +155,17 @@ def run_experiment(
         def say(text: str) -> None:
             print(f'  Set {set_name} {system}: {text}', flush=True)
 
+        profile = getattr(args, 'dds_profile', None)
+        if profile:
+            from activesurv_bringup.errors import ConfigError
+            from activesurv_bringup.experiment import dds_profile_path
+
+            if getattr(args, 'hosts', 'single') == 'netns':
+                raise ConfigError('--dds-profile and --hosts netns do not mix (hosts use UDPv4)')
+            path = dds_profile_path(profile)
+            os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(path)  # every node inherits it
+            say(f'Fast DDS profile {path}')
+
         def graph(hosts: Any = None) -> None:
             run_graph(
                 exp,
@@ -177,8 +196,6 @@ def _run_on_hosts(
     exp: Any, out: Path, graph: Callable[[Any], None], say: Callable[[str], None]
 ) -> dict[str, Any]:
     """Run the graph over network namespaces: core plus one host per camera, DDS over UDP."""
-    import os
-
     from activesurv_bringup.errors import ConfigError
     from activesurv_bringup.evaluation import write_results
     from activesurv_bringup.netns import NetnsHosts, unavailable_reason

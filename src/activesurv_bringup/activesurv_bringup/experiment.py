@@ -31,22 +31,40 @@ SETS = ('A', 'B')
 SYSTEMS = ('static', 'medium', 'fast')
 
 
-def config_path() -> Path:
+def config_file(name: str) -> Path:
+    """A file of this package's ``config/`` (source tree, or the colcon install's share)."""
     here = Path(__file__).resolve().parent
-    for candidate in (
-        here.parent / 'config' / 'experiments.yaml',
-        here / 'data' / 'experiments.yaml',
-    ):
+    for candidate in (here.parent / 'config' / name, here / 'data' / name):
         if candidate.exists():
             return candidate
     try:
         from ament_index_python.packages import get_package_share_directory
 
-        return (
-            Path(get_package_share_directory('activesurv_bringup')) / 'config' / 'experiments.yaml'
-        )
+        shared = Path(get_package_share_directory('activesurv_bringup')) / 'config' / name
     except (ImportError, LookupError, OSError) as exc:
-        raise ConfigError('cannot find config/experiments.yaml') from exc
+        raise ConfigError(f'cannot find config/{name}') from exc
+    if not shared.exists():
+        raise ConfigError(f'cannot find config/{name}')
+    return shared
+
+
+def config_path() -> Path:
+    return config_file('experiments.yaml')
+
+
+DDS_PROFILES = {'large-images': 'fastdds_large_images.xml'}
+
+
+def dds_profile_path(name_or_path: str) -> Path:
+    """A Fast DDS XML profile: a shipped one by name (``large-images``) or a file path."""
+    if name_or_path in DDS_PROFILES:
+        return config_file(DDS_PROFILES[name_or_path])
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise ConfigError(
+            f'DDS profile {name_or_path!r} is neither a file nor one of {sorted(DDS_PROFILES)}'
+        )
+    return path.resolve()
 
 
 def cache_dir() -> Path:

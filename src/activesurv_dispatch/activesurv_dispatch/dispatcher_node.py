@@ -24,12 +24,13 @@ import sys
 import time
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -44,6 +45,7 @@ from activesurv_dispatch.conversions import (
     plan_markers,
     plan_to_msg,
 )
+from activesurv_dispatch.errors import DispatchError
 from activesurv_dispatch.motion import CaptureScheduler, MotionController
 from activesurv_dispatch.planner import Demand, DispatchPlanner, Plan
 from activesurv_dispatch.sensors import load_setup
@@ -76,6 +78,11 @@ class DispatcherNode(Node):
         )
         self.declare_parameter('frame_id', 'world', d(description='frame of plans and markers'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         g = self.get_parameter
         setup_file = str(g('setup_file').value)
@@ -279,9 +286,18 @@ class DispatcherNode(Node):
         self._diag_pub.publish(arr)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, DispatchError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = DispatcherNode()
+    try:
+        node = DispatcherNode()
+    except STARTUP_ERRORS as exc:
+        print(f'dispatcher: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

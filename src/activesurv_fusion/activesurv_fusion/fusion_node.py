@@ -24,7 +24,7 @@ import signal
 import sys
 from collections import Counter
 from types import FrameType
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -35,6 +35,7 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
+from rclpy.exceptions import ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -49,6 +50,7 @@ from activesurv_fusion.conversions import (
     result_to_pose,
     time_to_sec,
 )
+from activesurv_fusion.errors import FusionError
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
 
@@ -107,6 +109,11 @@ class FusionNode(Node):
             ),
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
         self._collector = DemandCollector(float(self.get_parameter('collect_timeout').value))
         self._journal = str(self.get_parameter('journal').value)
         if self._journal:
@@ -223,10 +230,19 @@ class FusionNode(Node):
         self._diag_pub.publish(array)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, FusionError)
+
+
 def main(args: list[str] | None = None) -> int:
     # Own signal handling: on SIGINT/SIGTERM answer the open demands before the context goes.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = FusionNode()
+    try:
+        node = FusionNode()
+    except STARTUP_ERRORS as exc:
+        print(f'fusion: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     stopping = False

@@ -19,12 +19,13 @@ import sys
 import zlib
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
@@ -94,6 +95,11 @@ class ImagerNode(Node):
         self.declare_parameter('inject_flip', False, d(description='fault: wrong circle pose'))
         declare_mount_parameters(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         self.camera_id = str(self.get_parameter('camera_id').value)
         self.mount: CameraMount | Transform = mount_from_parameters(
@@ -300,9 +306,18 @@ class ImagerNode(Node):
         self._diag_pub.publish(arr)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, ImagingError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = ImagerNode()
+    try:
+        node = ImagerNode()
+    except STARTUP_ERRORS as exc:
+        print(f'imager: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
@@ -80,6 +81,11 @@ class SimCameraNode(Node):
         )
         declare_mount_parameters(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         p = {name: self.get_parameter(name).value for name in MOUNT_PARAMETERS}
         self.camera_id = str(self.get_parameter('camera_id').value)
@@ -212,9 +218,18 @@ class SimCameraNode(Node):
             self._publish(t)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, ImagingError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = SimCameraNode()
+    try:
+        node = SimCameraNode()
+    except STARTUP_ERRORS as exc:
+        print(f'sim_camera: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

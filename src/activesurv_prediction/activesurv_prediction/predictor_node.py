@@ -12,7 +12,7 @@ import math
 import sys
 from collections import deque
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import rclpy
@@ -20,6 +20,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image
@@ -96,6 +97,11 @@ class PredictorNode(Node):
         )
         self.declare_parameter('frame_id', 'world', d(description='frame of the horizon'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         g = self.get_parameter
         self.camera_id = str(g('camera_id').value)
@@ -265,9 +271,18 @@ class PredictorNode(Node):
         self._diag_pub.publish(arr)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, PredictionError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = PredictorNode()
+    try:
+        node = PredictorNode()
+    except STARTUP_ERRORS as exc:
+        print(f'predictor: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

@@ -13,11 +13,12 @@ from __future__ import annotations
 import math
 import sys
 from collections import Counter
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -26,7 +27,7 @@ from activesurv_interfaces.msg import StageGoal
 from activesurv_stages import qos, topics
 from activesurv_stages.config import MOTION_CLASSES, motion_class
 from activesurv_stages.conversions import goal_items, joint_state, sec_to_time
-from activesurv_stages.errors import ConfigError, LimitError
+from activesurv_stages.errors import ConfigError, LimitError, StageError
 from activesurv_stages.kinematics import AxisLimits, AxisSimulator
 
 
@@ -45,6 +46,11 @@ class SimStageNode(Node):
         )
         self.declare_parameter('publish_rate', 25.0, d(description='JointState rate (Hz)'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         g = self.get_parameter
         self.camera_id = str(g('camera_id').value)
@@ -134,9 +140,18 @@ class SimStageNode(Node):
         self._diag.publish(arr)
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, StageError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = SimStageNode()
+    try:
+        node = SimStageNode()
+    except STARTUP_ERRORS as exc:
+        print(f'sim_stage: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

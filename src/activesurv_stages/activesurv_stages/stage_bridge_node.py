@@ -14,11 +14,12 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -42,6 +43,11 @@ class StageBridgeNode(Node):
         self.declare_parameter('home_on_connect', True, d(description='home unreferenced axes'))
         self.declare_parameter('reconnect_period', 1.0, d(description='s between reconnects'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         g = self.get_parameter
         path = str(g('config_file').value)
@@ -143,11 +149,15 @@ class StageBridgeNode(Node):
         super().destroy_node()
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, StageError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     try:
         node = StageBridgeNode()
-    except StageError as exc:
+    except STARTUP_ERRORS as exc:
         print(f'stage_bridge: error: {exc}', file=sys.stderr)
         rclpy.try_shutdown()
         return 1

@@ -15,10 +15,11 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -26,7 +27,7 @@ from rosgraph_msgs.msg import Clock
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_stages import qos, topics
 from activesurv_stages.conversions import object_state_msg, sec_to_time
-from activesurv_stages.errors import ConfigError
+from activesurv_stages.errors import ConfigError, StageError
 from activesurv_stages.xytable import ObjectModel, XYTable, named_path
 
 
@@ -62,6 +63,11 @@ class XYTableNode(Node):
         )
         self.declare_parameter('wait_timeout', 30.0, d(description='s to wait for them at most'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
+        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
+        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
+        if not startup.successful:
+            raise ValueError(f'invalid parameter: {startup.reason}')
 
         g = self.get_parameter
         path = named_path(
@@ -145,9 +151,18 @@ class XYTableNode(Node):
         self._pub.publish(object_state_msg(self.table.state(t), stamp, self.frame_id))
 
 
+# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
+STARTUP_ERRORS = (ValueError, OSError, ParameterException, StageError)
+
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
-    node = XYTableNode()
+    try:
+        node = XYTableNode()
+    except STARTUP_ERRORS as exc:
+        print(f'xy_table: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

@@ -150,6 +150,7 @@ def run_lockstep(
                     ax.command(t, float(goal), float(v))
         capture = scheduler.due(t, plan, demands)
         if capture is not None:
+            planner.close(capture.demand.index)
             motion.holding.update(capture.cameras)
             if plan_log is not None:
                 plan_log.append((capture.demand.index, capture.cameras))

@@ -247,6 +247,7 @@ class DispatcherNode(Node):
             capture = self.scheduler.due(now, self.plan, self.demands)
             if capture is not None:
                 self._capture_pub.publish(capture_to_request(capture, now, self.frame_id))
+                self.planner.close(capture.demand.index)
                 self.motion.holding.update(capture.cameras)
                 self.counts['captures'] += 1
                 self.get_logger().info(

@@ -15,7 +15,10 @@ On every new rolling horizon, :meth:`DispatchPlanner.plan`:
       see the demand at all (unless none can).
 
    The assignment is frozen until the demand is serviced (:meth:`serviced`). Its desired poses
-   are not frozen: see 3.
+   are not frozen: see 3. Ours in addition: a frozen assignment with fewer than k cameras (one
+   died and was excluded, or a camera's first stage state came after the assignment) is topped
+   up from the cameras not in it, by the same ranking, until its capture request has gone out
+   (:meth:`close`). Cameras already in it are never swapped.
 2. **Preassignment and prepositioning** (II-C). Cameras not assigned to the first demand go to
    the next demands in turn, up to k per demand, until all are placed or the horizon ends. They
    are re-planned on every horizon.
@@ -154,12 +157,18 @@ class DispatchPlanner:
         self._serviced: set[int] = set()
         self.replans = 0
         self.excluded: set[str] = set()  # cameras judged dead: not dispatched
+        self._closed: set[int] = set()  # demands whose capture request has gone out
 
     # -- bookkeeping -------------------------------------------------------------------------
     def serviced(self, index: int) -> None:
         """Demand ``index`` has been captured: release its frozen assignment."""
         self._serviced.add(index)
         self._frozen.pop(index, None)
+        self._closed.discard(index)
+
+    def close(self, index: int) -> None:
+        """The capture request of demand ``index`` has gone out: its camera set is final."""
+        self._closed.add(index)
 
     def frozen_cameras(self, index: int) -> tuple[str, ...]:
         f = self._frozen.get(index)
@@ -324,6 +333,15 @@ class DispatchPlanner:
                     frozen.reference = first
                     self.replans += 1
                     replanned = True
+                missing = self.k - len(alive)
+                spare = [c for c in cams if c not in frozen.cameras]
+                if missing > 0 and spare and first.index not in self._closed:
+                    ranked = self.rank(first, spare, joints, now, len(spare))
+                    extra = [item for item in ranked[:missing] if item[1].visibility > 0.0]
+                    if extra:
+                        frozen.cameras += tuple(c for c, _ in extra)
+                        frozen.desired.update(extra)
+                        alive += [c for c, _ in extra]
                 ranking = tuple((c, frozen.desired[c].visibility) for c in alive)
             for c in frozen.cameras:
                 if c in frozen.desired and c in free:

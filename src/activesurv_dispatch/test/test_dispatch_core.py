@@ -235,3 +235,53 @@ def test_missed_demands_are_reported_not_dropped() -> None:
     missed = sched.missed(2.5, {0: d0, 1: d1})
     assert [(c.demand.index, c.cameras) for c in missed] == [(0, ())]
     assert sched.missed(2.6, {0: d0, 1: d1}) == []  # once
+
+
+def test_short_assignment_is_topped_up_until_its_capture() -> None:
+    """A camera whose first stage state comes after the assignment (or a dead camera's slot) is
+    filled from the spare cameras, never by swapping one in the assignment, and not once the
+    capture request has gone out."""
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    full = DispatchPlanner(setup, MODEL, k=3).plan(0.0, [_demand(0, 2.0, 0.25)], joints)
+    best = full.assigned()
+    late = best[0]  # the best camera is heard only later
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    d0 = _demand(0, 2.0, 0.25)
+    without = {c: q for c, q in joints.items() if c != late}
+    first = planner.plan(0.0, [d0], without).assigned()
+    assert late not in first
+    assert len(first) == 3  # three of the other three
+    # cam `late` appears: the assignment is full, so nothing changes.
+    assert planner.plan(0.1, [d0], joints).assigned() == first
+
+    # Now one assigned camera dies: its slot goes to the best spare one, `late`.
+    dead = first[-1]
+    planner.exclude(dead)
+    topped = planner.plan(0.2, [d0], joints).assigned()
+    assert dead not in topped
+    assert set(first) - {dead} <= set(topped)
+    assert late in topped
+    assert len(topped) == 3
+
+    # After the capture request no camera is added any more.
+    planner2 = DispatchPlanner(setup, MODEL, k=3)
+    first2 = planner2.plan(0.0, [d0], without).assigned()
+    planner2.close(0)
+    planner2.exclude(first2[0])
+    closed = planner2.plan(1.8, [d0], joints).assigned()
+    assert len(closed) == 2
+    assert late not in closed
+
+
+def test_assignment_with_too_few_cameras_fills_up_when_they_are_heard() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3)
+    d0 = _demand(0, 2.0, 0.25)
+    two = dict(list(joints.items())[:2])
+    first = planner.plan(0.0, [d0], two).assigned()
+    assert len(first) <= 2
+    later = planner.plan(0.3, [d0], joints).assigned()
+    assert set(first) <= set(later)
+    assert len(later) == 3

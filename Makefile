@@ -9,8 +9,8 @@ STAMPS := $(VENV)/.stamps
 # A marker inherited from another venv's Python would stop ours from setting LD_LIBRARY_PATH.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-PKGS := activesurv_imaging activesurv_prediction activesurv_dispatch activesurv_fusion \
-        activesurv_stages activesurv_bringup
+PKGS := activesurv_common activesurv_sim activesurv_imaging activesurv_prediction \
+        activesurv_dispatch activesurv_fusion activesurv_stages activesurv_bringup
 IFACE_SRC := $(wildcard src/activesurv_interfaces/msg/*.msg) \
              src/activesurv_interfaces/CMakeLists.txt src/activesurv_interfaces/package.xml \
              src/activesurv_interfaces/pyproject.toml scripts/build_interfaces.sh
@@ -47,7 +47,7 @@ $(STAMPS)/packages: $(STAMPS)/interfaces $(PKG_META)
 	@touch $@
 
 demo: setup
-	$(VENV)/bin/activesurv demo --out runs/demo
+	$(VENV)/bin/activesurv demo
 
 test: setup
 	$(PY) -m pytest $(TEST_ARGS)

@@ -21,12 +21,12 @@ import numpy as np
 from activesurv_bringup.evaluation import results_document
 from activesurv_bringup.experiment import load_experiment
 from activesurv_bringup.lockstep import run_lockstep
+from activesurv_common.mount import CameraMount
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import Target, camera_frames, ideal_pose, view_batch
 from activesurv_dispatch.planner import Demand, DispatchPlanner
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_dispatch.visibility import fused_visibility
-from activesurv_imaging.mount import CameraMount
-from activesurv_imaging.sensor_model import SensorModel
 
 MODEL = SensorModel.load()
 COV = np.diag([4e-6, 4e-6, 2.5e-7, 1e-4, 1e-4, 1e-4])

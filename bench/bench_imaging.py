@@ -15,11 +15,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from activesurv_imaging.camera_model import dynamic_camera
+from activesurv_common.camera_model import dynamic_camera
+from activesurv_common.geometry import angle_between, rotation_between
 from activesurv_imaging.ellipse import Ellipse
-from activesurv_imaging.geometry import angle_between, rotation_between
 from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
-from activesurv_imaging.render import Plate, Scene, look_at, render
+from activesurv_sim.render import Plate, Scene, look_at, render
 
 N_VIEWS = 200
 RADIUS = 0.0125

@@ -106,11 +106,12 @@ def run() -> dict[str, Any]:
     # speed (rtf 0.5): at rtf 1 this shared 2-core machine cannot render the cameras in time.
     # bench_reliability.py measures it again under image-stream load.
     from activesurv_bringup.graph import run_graph
+    from activesurv_bringup.options import RunOptions
     from activesurv_bringup.report import load_run
 
     exp = load_experiment('A', 'fast', 7)
     with tempfile.TemporaryDirectory() as tmp:
-        run_graph(exp, Path(tmp) / 'run', rtf=0.5, progress=lambda _: None)
+        run_graph(exp, Path(tmp) / 'run', RunOptions(rtf=0.5), progress=lambda _: None)
         doc = load_run(Path(tmp) / 'run')
     lat = [d['latency'] for d in doc['demands'] if d['latency'] is not None]
     out['estimate_latency_ms'] = round(1e3 * statistics.median(lat), 1) if lat else None

@@ -14,7 +14,6 @@ made twice: with Fast DDS's builtin transports (the plain keys) and with the shi
 from __future__ import annotations
 
 import json
-import os
 import statistics
 import tempfile
 from pathlib import Path
@@ -26,6 +25,7 @@ from activesurv_bringup.experiment import dds_profile_path, load_experiment
 from activesurv_bringup.graph import run_graph
 from activesurv_bringup.launcher import NodeSpec
 from activesurv_bringup.load_node import stream_topic
+from activesurv_bringup.options import RunOptions
 from activesurv_bringup.report import load_run
 
 CAMERAS = ['cam1', 'cam2', 'cam3', 'cam4']
@@ -39,7 +39,9 @@ def _latency(doc: dict[str, Any]) -> tuple[float | None, float | None]:
     return round(1e3 * statistics.median(lat), 1), round(1e3 * float(np.percentile(lat, 90)), 1)
 
 
-def _loaded_run(exp: Any, tmp: Path, name: str) -> tuple[dict[str, Any], dict[str, Any]]:
+def _loaded_run(
+    exp: Any, tmp: Path, name: str, profile: Path | None = None
+) -> tuple[dict[str, Any], dict[str, Any]]:
     """One graph run with the four 30 Hz streams next to it: (results, stream counts)."""
     summary_file = tmp / f'{name}.json'
     load = [
@@ -57,10 +59,13 @@ def _loaded_run(exp: Any, tmp: Path, name: str) -> tuple[dict[str, Any], dict[st
     run_graph(
         exp,
         tmp / name,
-        rtf=RTF,
+        RunOptions(
+            rtf=RTF,
+            extra=tuple(load),
+            thin=tuple(f'/{stream_topic(c)}' for c in CAMERAS),
+            dds_profile=profile,
+        ),
         progress=lambda _: None,
-        extra=load,
-        thin=[f'/{stream_topic(c)}' for c in CAMERAS],
     )
     return load_run(tmp / name), json.loads(summary_file.read_text())
 
@@ -84,19 +89,13 @@ def run() -> dict[str, Any]:
     exp = load_experiment('A', 'fast', 7)
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
-        run_graph(exp, tmp / 'plain', rtf=RTF, progress=lambda _: None)
+        run_graph(exp, tmp / 'plain', RunOptions(rtf=RTF), progress=lambda _: None)
         out['latency_ms_plain'], out['latency_p90_ms_plain'] = _latency(load_run(tmp / 'plain'))
         # Out of the box: Fast DDS's builtin transports (512 kB shared-memory segments).
         out.update(_stream_keys('', *_loaded_run(exp, tmp, 'loaded')))
         # With the shipped profile for camera-sized messages (every node of the run uses it).
-        key = 'FASTRTPS_DEFAULT_PROFILES_FILE'
-        before = os.environ.get(key)
-        os.environ[key] = str(dds_profile_path('large-images'))
-        try:
-            out.update(_stream_keys('_large_images', *_loaded_run(exp, tmp, 'loaded_profile')))
-        finally:
-            if before is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = before
+        profile = dds_profile_path('large-images')
+        out.update(
+            _stream_keys('_large_images', *_loaded_run(exp, tmp, 'loaded_profile', profile))
+        )
     return out

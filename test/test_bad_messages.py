@@ -32,7 +32,7 @@ def _observation(cam: str, index: int, x: float, stamp: Any) -> Any:
 def test_fusion_survives_nan_observations(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
-    from activesurv_fusion import qos, topics
+    from activesurv_common.ros import qos, topics
     from activesurv_fusion.fusion_node import FusionNode
     from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
@@ -86,7 +86,7 @@ def test_dispatcher_survives_nan_horizon_and_joint_states(
 ) -> None:
     from sensor_msgs.msg import JointState
 
-    from activesurv_dispatch import qos, topics
+    from activesurv_common.ros import qos, topics
     from activesurv_dispatch.dispatcher_node import DispatcherNode
     from activesurv_interfaces.msg import DemandHorizon, DemandPoint
 
@@ -108,16 +108,21 @@ def test_dispatcher_survives_nan_horizon_and_joint_states(
         h_pub.publish(DemandHorizon(demands=[d]))
         assert spin_until(
             [node, peer],
-            lambda: node.counts['bad_joint_states'] >= 2 and node.counts['bad_demands'] >= 1,
+            lambda: (
+                node.session.counts['bad_joint_states'] >= 2
+                and node.session.counts['bad_demands'] >= 1
+            ),
         )
-        assert 'cam1' not in node.joints, 'a NaN stage state was taken as the camera position'
-        assert node.demands == {} or all(
-            np.all(np.isfinite(dm.position)) for dm in node.demands.values()
+        assert 'cam1' not in node.session.joints, (
+            'a NaN stage state was taken as the camera position'
+        )
+        assert node.session.demands == {} or all(
+            np.all(np.isfinite(dm.position)) for dm in node.session.demands.values()
         )
         # Good state afterwards is accepted.
         j_pub.publish(JointState(name=['cam1_x', 'cam1_yaw'], position=[0.1, 0.2]))
-        assert spin_until([node, peer], lambda: 'cam1' in node.joints)
-        assert np.allclose(node.joints['cam1'], [0.1, 0.2])
+        assert spin_until([node, peer], lambda: 'cam1' in node.session.joints)
+        assert np.allclose(node.session.joints['cam1'], [0.1, 0.2])
     finally:
         node.destroy_node()
         peer.destroy_node()
@@ -128,9 +133,9 @@ def test_stage_never_leaves_its_soft_limits(
 ) -> None:
     from sensor_msgs.msg import JointState
 
+    from activesurv_common.ros import qos, topics
     from activesurv_interfaces.msg import StageGoal
-    from activesurv_stages import qos, topics
-    from activesurv_stages.sim_stage_node import SimStageNode
+    from activesurv_sim.sim_stage_node import SimStageNode
 
     stage = SimStageNode(
         parameter_overrides=[

@@ -12,12 +12,12 @@ import pytest
 CASES = [
     ('activesurv_imaging.imager_node', 'marker_radius:=-1.0', 'marker_radius'),
     ('activesurv_imaging.imager_node', 'marker_radius:=abc', 'marker_radius'),
-    ('activesurv_imaging.sim_camera_node', 'supersample:=0', 'supersample'),
+    ('activesurv_sim.sim_camera_node', 'supersample:=0', 'supersample'),
     ('activesurv_prediction.predictor_node', 'measurement_std:=-0.001', 'measurement_std'),
     ('activesurv_dispatch.dispatcher_node', 'k:=0', 'k'),
     ('activesurv_fusion.fusion_node', 'z_sigma:=-3.0', 'z_sigma'),
-    ('activesurv_stages.sim_stage_node', 'publish_rate:=-5.0', 'publish_rate'),
-    ('activesurv_stages.xy_table_node', 'real_time_factor:=0.0', 'real_time_factor'),
+    ('activesurv_sim.sim_stage_node', 'publish_rate:=-5.0', 'publish_rate'),
+    ('activesurv_sim.xy_table_node', 'real_time_factor:=0.0', 'real_time_factor'),
 ]
 
 

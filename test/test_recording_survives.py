@@ -90,7 +90,6 @@ def test_sigkill_loses_at_most_one_flush_period(tmp_path: Path, rclpy_context: A
     numbers = [json.loads(m.msg.data)['n'] for m in read_bag(bag, {'/numbers'})]
     assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), 'a gap in the stream'
     lost_at_end = sent - 1 - numbers[-1]
-    print(f'sent {sent} at {rate:.1f} Hz, recovered {len(numbers)}, lost at the end {lost_at_end}')
     # At most one flush period, with one period of slack for a busy machine's timer jitter.
     assert lost_at_end <= rate * 2 * FLUSH + 5, (lost_at_end, rate)
     assert len(numbers) >= sent - numbers[0] - rate * 2 * FLUSH - 5

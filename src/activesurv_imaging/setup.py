@@ -8,7 +8,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['py.typed', 'data/*.yaml']},
+    package_data={package_name: ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -25,9 +25,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'activesurv_sensor_model = activesurv_imaging.sensor_model_experiment:main',
             'activesurv_calibrate = activesurv_imaging.calibrate_cli:main',
-            'sim_camera = activesurv_imaging.sim_camera_node:main',
+            'overhead_locator = activesurv_imaging.overhead_locator_node:main',
             'imager = activesurv_imaging.imager_node:main',
         ],
     },

@@ -25,9 +25,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'sim_stage = activesurv_stages.sim_stage_node:main',
             'stage_bridge = activesurv_stages.stage_bridge_node:main',
-            'xy_table = activesurv_stages.xy_table_node:main',
             'activesurv_stages = activesurv_stages.cli:main',
         ],
     },

@@ -8,6 +8,7 @@ Reading uses the definitions stored in the bag itself, so a bag from another ver
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 from collections.abc import Iterator
@@ -20,8 +21,15 @@ from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from activesurv_bringup.errors import BagError
+from activesurv_common.ros import topics
 
-RUN_INFO_TOPIC = '/activesurv/run_info'
+RUN_INFO_TOPIC = topics.RUN_INFO
+
+
+def message_class(type_name: str) -> Any:
+    """The Python class of ``pkg/msg/Name`` (the message package must be importable)."""
+    pkg, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
 
 
 def interface_dir() -> Path:

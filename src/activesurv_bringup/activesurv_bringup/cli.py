@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from activesurv_bringup.errors import BringupError
+from activesurv_bringup.errors import BringupError, ConfigError
+from activesurv_bringup.options import RunOptions, new_output_dir, timestamped_dir
 
 SYSTEMS = ('static', 'medium', 'fast')
 DDS_PROFILE_HELP = (
@@ -46,7 +46,7 @@ def _build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser('experiment', help="run one of the paper's experiments")
     exp.add_argument('--set', dest='set_name', required=True, choices=('A', 'B'))
     exp.add_argument('--system', required=True, choices=SYSTEMS)
-    exp.add_argument('--out', type=Path, required=True, help='output directory')
+    exp.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     exp.add_argument('--seed', type=int, default=0)
     exp.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
     exp.add_argument('--trajectory', help='CSV t,x,y replacing the object path')
@@ -83,14 +83,19 @@ def _build_parser() -> argparse.ArgumentParser:
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
-    rpl.add_argument('--out', type=Path, required=True, help='output directory')
+    rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     rpl.add_argument('--rtf', type=float, default=0.5, help='bag s per wall s')
 
     rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
 
     demo = sub.add_parser('demo', help='the main job: all six experiments and the report')
-    demo.add_argument('--out', type=Path, default=Path('runs/demo'), help='output directory')
+    demo.add_argument(
+        '--out',
+        type=Path,
+        default=None,
+        help='output directory (new or empty); default: a new runs/demo_<date-time>',
+    )
     demo.add_argument('--seed', type=int, default=1)
     demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
     demo.add_argument('--rtf', type=float, default=0.5)
@@ -110,94 +115,90 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_experiment(
-    args: argparse.Namespace, out: Path, set_name: str, system: str, seed: int
-) -> dict[str, object]:
-    from activesurv_bringup.evaluation import results_document, write_results
-    from activesurv_bringup.experiment import load_experiment
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """The run options of an ``experiment`` or ``demo`` command line.
+
+    Raises:
+        ConfigError: for a malformed fault, kill or profile, or options that do not mix.
+    """
+    from activesurv_bringup.experiment import dds_profile_path
     from activesurv_bringup.faults import parse_fault, parse_kill
 
-    faults = [parse_fault(f) for f in getattr(args, 'fault', [])]
-    kills = [parse_kill(k) for k in getattr(args, 'kill', [])]
-    if kills and args.mode != 'graph':
-        from activesurv_bringup.errors import ConfigError
-
-        raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
-    exp = load_experiment(
-        set_name, system, seed, getattr(args, 'trajectory', None), getattr(args, 'expect', None)
+    profile = getattr(args, 'dds_profile', None)
+    return RunOptions(
+        rtf=float(args.rtf),
+        image_rate=float(getattr(args, 'image_rate', 2.0)),
+        faults=tuple(parse_fault(f) for f in getattr(args, 'fault', [])),
+        kills=tuple(parse_kill(k) for k in getattr(args, 'kill', [])),
+        compose=bool(getattr(args, 'compose', False)),
+        hosts=str(getattr(args, 'hosts', 'single')),
+        dds_profile=dds_profile_path(profile) if profile else None,
     )
+
+
+def experiment(
+    set_name: str,
+    system: str,
+    out: Path,
+    seed: int = 0,
+    mode: str = 'graph',
+    trajectory: str | None = None,
+    expect: str | None = None,
+    options: RunOptions | None = None,
+) -> dict[str, Any]:
+    """Run one experiment into ``out`` (new or empty); returns its results document.
+
+    Raises:
+        ConfigError: for a bad configuration; NodeDiedError if a node of the graph dies.
+    """
+    from activesurv_bringup.evaluation import results_document, write_results
+    from activesurv_bringup.experiment import load_experiment
+
+    opts = options or RunOptions()
+    if opts.kills and mode != 'graph':
+        raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
+    exp = load_experiment(set_name, system, seed, trajectory, expect)
+    new_output_dir(out)
     started = time.monotonic()
-    if args.mode == 'lockstep':
+
+    def say(text: str) -> None:
+        print(f'  Set {set_name} {system}: {text}', flush=True)
+
+    doc: dict[str, Any]
+    if mode == 'lockstep':
         from activesurv_bringup.lockstep import run_lockstep
 
         def progress(j: int, m: int, t: float) -> None:
-            print(
-                f'  Set {set_name} {system}: demand {j} of {m}, simulated time {t:.1f} s',
-                flush=True,
-            )
+            say(f'demand {j} of {m}, simulated time {t:.1f} s')
 
-        records = run_lockstep(exp, faults, progress)
+        records = run_lockstep(exp, opts.faults, progress)
         doc = results_document(
             set_name,
             system,
             records,
-            {
-                'seed': seed,
-                'mode': 'lockstep',
-                'faults': [f'{f.camera}:{f.kind}:{f.magnitude:g}' for f in faults],
-            },
+            {'seed': seed, 'mode': 'lockstep', 'faults': [str(f) for f in opts.faults]},
         )
         write_results(out / 'results.json', doc)
+    elif opts.hosts == 'netns':
+        doc = _run_on_hosts(exp, out, opts, say)
     else:
         from activesurv_bringup.graph import run_graph
         from activesurv_bringup.report import load_run
 
-        def say(text: str) -> None:
-            print(f'  Set {set_name} {system}: {text}', flush=True)
-
-        profile = getattr(args, 'dds_profile', None)
-        if profile:
-            from activesurv_bringup.errors import ConfigError
-            from activesurv_bringup.experiment import dds_profile_path
-
-            if getattr(args, 'hosts', 'single') == 'netns':
-                raise ConfigError('--dds-profile and --hosts netns do not mix (hosts use UDPv4)')
-            path = dds_profile_path(profile)
-            os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(path)  # every node inherits it
-            say(f'Fast DDS profile {path}')
-
-        def graph(hosts: Any = None) -> None:
-            run_graph(
-                exp,
-                out,
-                rtf=args.rtf,
-                image_rate=getattr(args, 'image_rate', 2.0),
-                faults=faults,
-                progress=say,
-                compose=getattr(args, 'compose', False),
-                kills=kills,
-                hosts=hosts,
-            )
-
-        if getattr(args, 'hosts', 'single') == 'netns':
-            doc = _run_on_hosts(exp, out, graph, say)
-        else:
-            graph()
-            doc = load_run(out)
-    print(
-        f'  Set {set_name} {system}: done in {time.monotonic() - started:.1f} s -> '
-        f'{out / "results.json"}',
-        flush=True,
-    )
+        if opts.dds_profile is not None:
+            say(f'Fast DDS profile {opts.dds_profile}')
+        run_graph(exp, out, opts, progress=say)
+        doc = load_run(out)
+    say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
     return doc
 
 
 def _run_on_hosts(
-    exp: Any, out: Path, graph: Callable[[Any], None], say: Callable[[str], None]
+    exp: Any, out: Path, opts: RunOptions, say: Callable[[str], None]
 ) -> dict[str, Any]:
     """Run the graph over network namespaces: core plus one host per camera, DDS over UDP."""
-    from activesurv_bringup.errors import ConfigError
     from activesurv_bringup.evaluation import write_results
+    from activesurv_bringup.graph import run_graph
     from activesurv_bringup.netns import NetnsHosts, unavailable_reason
     from activesurv_bringup.report import load_run
 
@@ -206,18 +207,75 @@ def _run_on_hosts(
         raise ConfigError(f'--hosts netns: network namespaces cannot be made here: {reason}')
     cameras = [s.camera_id for s in exp.setup.sensors]
     with NetnsHosts(['core', *cameras]) as hosts:
-        # Discovery over the bridge (multicast on the subnet); no shared memory between hosts.
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SUBNET'
-        os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
         hosts.enter('core')
         say(f'hosts: {hosts.addresses}')
-        graph(hosts)
+        run_graph(exp, out, opts, progress=say, hosts=hosts)
         traffic = hosts.traffic_bytes()
     doc = load_run(out)
     doc['hosts'] = {'mode': 'netns', 'addresses': hosts.addresses, 'traffic_bytes': traffic}
     write_results(out / 'results.json', doc)
     say(f'bytes through each host interface: {traffic}')
     return doc
+
+
+def replay(bag: Path, out: Path, rtf: float = 0.5) -> list[dict[str, Any]]:
+    """Re-run imaging and fusion on a recorded run (its bag or its directory) into ``out``."""
+    from activesurv_bringup.replay import compare, run_replay
+
+    if not (bag / 'metadata.yaml').exists() and (bag / 'bag').is_dir():
+        bag = bag / 'bag'  # a run directory
+    new_output_dir(out)
+    new = run_replay(bag, out, rtf)
+    rows = compare(bag, new)
+    (out / 'replay.json').write_text(json.dumps(rows, indent=2))
+    print(f'{"demand":>6} {"recorded":>9} {"replayed":>9} {"difference [mm]":>16}')
+    for r in rows:
+        d = r['position_difference']
+        print(
+            f'{r["index"]:>6} {r["recorded_status"]!s:>9} '
+            f'{r["replayed_status"]!s:>9} {1e3 * d:16.6f}'
+        )
+    print(f'\nreplayed bag: {new}')
+    return rows
+
+
+def report(path: Path) -> Path:
+    """results.json, plots and report.md of recorded runs; returns the report's path."""
+    from activesurv_bringup.report import report as make_report
+    from activesurv_bringup.report import summary_table
+
+    docs, out = make_report(path)
+    print(summary_table(docs))
+    print(f'\nreport: {out}')
+    return out
+
+
+def demo(
+    out: Path | None, seed: int = 1, mode: str = 'graph', options: RunOptions | None = None
+) -> Path:
+    """The six experiments and their report, in a new directory; returns it."""
+    from activesurv_bringup.report import summary_table, write_report
+
+    root = new_output_dir(out) if out is not None else timestamped_dir(Path('runs'), 'demo')
+    print(f'activesurv demo: writing to {root}', flush=True)
+    docs = []
+    started = time.monotonic()
+    for set_name in ('A', 'B'):
+        for system in SYSTEMS:
+            print(f'activesurv demo: Set {set_name}, {system} system ({mode})', flush=True)
+            docs.append(
+                experiment(
+                    set_name, system, root / f'{set_name}_{system}', seed, mode, options=options
+                )
+            )
+    path = write_report(docs, root)
+    print(f'\nactivesurv demo: six runs in {time.monotonic() - started:.0f} s\n')
+    print(summary_table(docs))
+    print(f'\nreport: {path}\nresults: {root}/*/results.json')
+    (root / 'demo.json').write_text(
+        json.dumps({'seconds': time.monotonic() - started, 'mode': mode}, indent=2)
+    )
+    return root
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -228,66 +286,32 @@ def main(argv: list[str] | None = None) -> int:
         return run(args)
     try:
         if args.command == 'experiment':
-            run_experiment(args, args.out, args.set_name, args.system, args.seed)
-            return 0
-        if args.command == 'replay':
-            from activesurv_bringup.replay import compare, run_replay
-
-            if not (args.bag / 'metadata.yaml').exists() and (args.bag / 'bag').is_dir():
-                args.bag = args.bag / 'bag'  # a run directory
-            new = run_replay(args.bag, args.out, args.rtf)
-            rows = compare(args.bag, new)
-            (args.out / 'replay.json').write_text(json.dumps(rows, indent=2))
-            print(f'{"demand":>6} {"recorded":>9} {"replayed":>9} {"difference [mm]":>16}')
-            for r in rows:
-                d = r['position_difference']
-                print(
-                    f'{r["index"]:>6} {r["recorded_status"]!s:>9} '
-                    f'{r["replayed_status"]!s:>9} {1e3 * d:16.6f}'
-                )
-            print(f'\nreplayed bag: {new}')
-            return 0
-        if args.command == 'bag':
+            experiment(
+                args.set_name,
+                args.system,
+                args.out,
+                args.seed,
+                args.mode,
+                args.trajectory,
+                args.expect,
+                run_options(args),
+            )
+        elif args.command == 'replay':
+            replay(args.bag, args.out, args.rtf)
+        elif args.command == 'bag':
             from activesurv_bringup.salvage import reindex
 
             print(json.dumps(reindex(args.bag).as_dict(), indent=2))
-            return 0
-        if args.command == 'report':
-            from activesurv_bringup.report import report, summary_table
-
-            docs, path = report(args.path)
-            print(summary_table(docs))
-            print(f'\nreport: {path}')
-            return 0
-        if args.command == 'demo':
-            from activesurv_bringup.report import summary_table, write_report
-
-            docs = []
-            started = time.monotonic()
-            for set_name in ('A', 'B'):
-                for system in SYSTEMS:
-                    out = args.out / f'{set_name}_{system}'
-                    if out.exists():
-                        import shutil
-
-                        shutil.rmtree(out)
-                    print(
-                        f'activesurv demo: Set {set_name}, {system} system ({args.mode})',
-                        flush=True,
-                    )
-                    docs.append(run_experiment(args, out, set_name, system, args.seed))
-            path = write_report(docs, args.out)
-            print(f'\nactivesurv demo: six runs in {time.monotonic() - started:.0f} s\n')
-            print(summary_table(docs))
-            print(f'\nreport: {path}\nresults: {args.out}/*/results.json')
-            (args.out / 'demo.json').write_text(
-                json.dumps({'seconds': time.monotonic() - started, 'mode': args.mode}, indent=2)
-            )
-            return 0
+        elif args.command == 'report':
+            report(args.path)
+        elif args.command == 'demo':
+            demo(args.out, args.seed, args.mode, run_options(args))
+        else:
+            return 2
     except (BringupError, OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
         return 1
-    return 2
+    return 0
 
 
 if __name__ == '__main__':

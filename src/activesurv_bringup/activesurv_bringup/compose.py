@@ -16,13 +16,14 @@ from activesurv_bringup.launcher import NodeSpec
 
 NODE_CLASSES = {
     'activesurv_bringup.recorder_node': 'RecorderNode',
-    'activesurv_imaging.sim_camera_node': 'SimCameraNode',
+    'activesurv_sim.sim_camera_node': 'SimCameraNode',
     'activesurv_imaging.imager_node': 'ImagerNode',
     'activesurv_prediction.predictor_node': 'PredictorNode',
+    'activesurv_imaging.overhead_locator_node': 'OverheadLocatorNode',
     'activesurv_dispatch.dispatcher_node': 'DispatcherNode',
     'activesurv_fusion.fusion_node': 'FusionNode',
-    'activesurv_stages.sim_stage_node': 'SimStageNode',
-    'activesurv_stages.xy_table_node': 'XYTableNode',
+    'activesurv_sim.sim_stage_node': 'SimStageNode',
+    'activesurv_sim.xy_table_node': 'XYTableNode',
 }
 
 

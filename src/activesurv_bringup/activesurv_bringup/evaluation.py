@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.geometry import Transform
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
 from activesurv_dispatch.sensors import Setup
 from activesurv_dispatch.visibility import fused_visibility
-from activesurv_imaging.geometry import Transform
-from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
 

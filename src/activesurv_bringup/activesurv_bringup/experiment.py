@@ -20,12 +20,12 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.errors import ConfigError
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.initial_pose import initial_poses
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup
-from activesurv_imaging.sensor_model import SensorModel
+from activesurv_sim.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
 from activesurv_stages.errors import ConfigError as StageConfigError
-from activesurv_stages.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
 
 SETS = ('A', 'B')
 SYSTEMS = ('static', 'medium', 'fast')

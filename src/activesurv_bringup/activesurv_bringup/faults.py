@@ -10,18 +10,33 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 
 from activesurv_bringup.errors import ConfigError
 
-KINDS = ('bias', 'noise', 'frozen', 'dead', 'flip')
-NEEDS_MAGNITUDE = ('bias', 'noise')
+
+class FaultKind(StrEnum):
+    """What goes wrong with a camera (the module docstring says how each is injected)."""
+
+    BIAS = 'bias'
+    NOISE = 'noise'
+    FROZEN = 'frozen'
+    DEAD = 'dead'
+    FLIP = 'flip'
+
+
+KINDS = tuple(k.value for k in FaultKind)
+NEEDS_MAGNITUDE = (FaultKind.BIAS, FaultKind.NOISE)
 
 
 @dataclass(frozen=True)
 class Fault:
     camera: str
-    kind: str
+    kind: FaultKind
     magnitude: float = 0.0
+
+    def __str__(self) -> str:
+        return f'{self.camera}:{self.kind}:{self.magnitude:g}'
 
 
 def parse_fault(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', 'cam4')) -> Fault:
@@ -52,7 +67,7 @@ def parse_fault(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', '
         raise ConfigError(f'fault {text!r}: {kind} needs a magnitude in metres')
     if kind == 'noise' and magnitude < 0:
         raise ConfigError(f'fault {text!r}: noise std must be >= 0')
-    return Fault(cam, kind, magnitude)
+    return Fault(cam, FaultKind(kind), magnitude)
 
 
 @dataclass(frozen=True)
@@ -64,14 +79,21 @@ class Kill:
     restart_at: float | None = None
 
 
-KILLABLE = ('fusion', 'predictor', 'dispatcher', 'recorder', 'overhead_camera')
+KILLABLE = (
+    'fusion',
+    'predictor',
+    'dispatcher',
+    'recorder',
+    'overhead_camera',
+    'overhead_locator',
+)
 
 
 def parse_kill(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', 'cam4')) -> Kill:
     """Parse ``NODE@T[:RESTART]`` (simulated seconds), e.g. ``cam2_imager@3.5:6``.
 
     NODE is a node of the graph: ``fusion``, ``dispatcher``, ``predictor``, ``recorder``,
-    ``overhead_camera`` or ``camN_imager``, ``camN_stage``, ``camN_camera``.
+    ``overhead_camera``, ``overhead_locator`` or ``camN_imager``, ``camN_stage``, ``camN_camera``.
 
     Raises:
         ConfigError: with what is wrong and what is allowed.
@@ -95,3 +117,16 @@ def parse_kill(text: str, cameras: tuple[str, ...] = ('cam1', 'cam2', 'cam3', 'c
     if len(times) == 2 and times[1] <= times[0]:
         raise ConfigError(f'kill {text!r}: the restart must come after the kill')
     return Kill(node, times[0], times[1] if len(times) == 2 else None)
+
+
+def imager_injection(fault: Fault | None) -> dict[str, float | bool]:
+    """The imager's fault-injection settings for ``fault`` (parameter and config names alike)."""
+    if fault is None:
+        return {}
+    if fault.kind is FaultKind.BIAS:
+        return {'inject_bias_x': fault.magnitude}
+    if fault.kind is FaultKind.NOISE:
+        return {'inject_noise': fault.magnitude}
+    if fault.kind is FaultKind.FLIP:
+        return {'inject_flip': True}
+    return {}

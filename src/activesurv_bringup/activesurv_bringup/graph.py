@@ -18,10 +18,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from activesurv_bringup.errors import NodeDiedError
+from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiment import Experiment
-from activesurv_bringup.faults import Fault, Kill
+from activesurv_bringup.faults import Fault, FaultKind, Kill, imager_injection
 from activesurv_bringup.launcher import Launcher, NodeSpec
+from activesurv_bringup.options import RunOptions, scoped_environ
 
 if TYPE_CHECKING:
     from activesurv_bringup.compose import Composition
@@ -50,7 +51,7 @@ def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
             'mode': 'graph',
             'marker_radius': exp.setup.marker_radius,
             'object': exp.config['object'],
-            'faults': [f'{f.camera}:{f.kind}:{f.magnitude:g}' for f in faults],
+            'faults': [str(f) for f in faults],
         }
     )
     return info
@@ -90,7 +91,7 @@ def graph_specs(
         ),
         NodeSpec(
             'overhead_camera',
-            'activesurv_imaging.sim_camera_node',
+            'activesurv_sim.sim_camera_node',
             parameters={
                 **sim,
                 'camera_id': 'overhead',
@@ -101,13 +102,21 @@ def graph_specs(
             },
         ),
         NodeSpec(
-            'predictor',
-            'activesurv_prediction.predictor_node',
+            'overhead_locator',
+            'activesurv_imaging.overhead_locator_node',
             parameters={
                 **sim,
                 'camera_pose': over,
                 'marker_height': float(obj['top_height']),
                 'marker_radius': exp.setup.marker_radius,
+            },
+        ),
+        NodeSpec(
+            'predictor',
+            'activesurv_prediction.predictor_node',
+            parameters={
+                **sim,
+                'marker_height': float(obj['top_height']),
                 'demand_times': [float(t) for t in exp.demand_times],
                 'horizon': int(pc['horizon']),
                 'measurement_std': float(pc['measurement_std']),
@@ -143,13 +152,13 @@ def graph_specs(
     for i, s in enumerate(exp.setup.sensors):
         cid = s.camera_id
         fault = by_cam.get(cid)
-        if fault is not None and fault.kind == 'dead':
+        if fault is not None and fault.kind is FaultKind.DEAD:
             continue  # the camera's nodes are not running
         kinds = (['linear'] if s.has_linear else []) + ['rotary']
         specs.append(
             NodeSpec(
                 f'{cid}_stage',
-                'activesurv_stages.sim_stage_node',
+                'activesurv_sim.sim_stage_node',
                 parameters={
                     **sim,
                     'camera_id': cid,
@@ -176,17 +185,11 @@ def graph_specs(
             **mount_parameters(s),
             'reliable_images': True,
         }
-        if fault is not None:
-            if fault.kind == 'frozen':
-                cam_params['inject_frozen'] = True
-            elif fault.kind == 'bias':
-                imager_params['inject_bias_x'] = fault.magnitude
-            elif fault.kind == 'noise':
-                imager_params['inject_noise'] = fault.magnitude
-            elif fault.kind == 'flip':
-                imager_params['inject_flip'] = True
+        if fault is not None and fault.kind is FaultKind.FROZEN:
+            cam_params['inject_frozen'] = True
+        imager_params.update(imager_injection(fault))
         specs.append(
-            NodeSpec(f'{cid}_camera', 'activesurv_imaging.sim_camera_node', parameters=cam_params)
+            NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params)
         )
         specs.append(
             NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
@@ -218,9 +221,7 @@ def graph_specs(
     else:
         table['path_points'] = [float(v) for v in spec['points']]
     host = 'core' if split_hosts else ''
-    specs.append(
-        NodeSpec('xy_table', 'activesurv_stages.xy_table_node', parameters=table, host=host)
-    )
+    specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
     return specs
 
 
@@ -313,54 +314,67 @@ def _chaos(
 def run_graph(
     exp: Experiment,
     out_dir: Path,
-    rtf: float = 1.0,
-    image_rate: float = 2.0,
-    faults: Sequence[Fault] = (),
+    options: RunOptions | None = None,
     progress: Progress = print,
-    startup_timeout: float = 60.0,
-    compose: bool = False,
-    kills: Sequence[Kill] = (),
-    extra: Sequence[NodeSpec] = (),
-    thin: Sequence[str] = (),
     hosts: NetnsHosts | None = None,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
-    With ``compose`` every node runs in this process on one executor instead of in its own
-    process. ``kills`` SIGKILL nodes at simulated instants and restart them (chaos testing).
-    ``extra`` nodes (e.g. load generators) start with the graph; ``thin`` topics are thinned in
-    the bag. With ``hosts`` (namespaces ``core``, ``cam1`` ...; this process must already be in
-    ``core``) every camera's nodes run on their own host.
+    With ``options.compose`` every node runs in this process on one executor instead of in its
+    own process. ``options.kills`` SIGKILL nodes at simulated instants and restart them (chaos
+    testing). ``options.extra`` nodes (e.g. load generators) start with the graph;
+    ``options.thin`` topics are thinned in the bag. With ``hosts`` (namespaces ``core``,
+    ``cam1`` ...; this process must already be in ``core``) every camera's nodes run on their
+    own host.
 
     Raises:
+        ConfigError: for options that do not fit this run (a node to kill that is not in it).
         NodeDiedError: if a node dies, or the graph does not come up in time.
     """
     import rclpy
 
+    opts = options or RunOptions()
     out_dir.mkdir(parents=True, exist_ok=True)
     bag = out_dir / 'bag'
     if bag.exists():
-        raise NodeDiedError(f'{bag} exists: give a new --out directory')
-    specs = graph_specs(exp, bag, rtf, image_rate, faults, thin, split_hosts=hosts is not None)
-    if extra:
-        specs = specs[:-1] + list(extra) + specs[-1:]
+        raise ConfigError(f'{bag} exists: give a new --out directory')
+    specs = graph_specs(
+        exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin, split_hosts=hosts is not None
+    )
+    if opts.extra:
+        specs = specs[:-1] + list(opts.extra) + specs[-1:]
     by_name = {s.name: s for s in specs[:-1]}
-    for k in kills:
+    for k in opts.kills:
         if k.node not in by_name:
-            raise NodeDiedError(f'cannot kill {k.node}: it is not running in this run')
-    if kills and compose:
-        raise NodeDiedError('killing nodes needs one process per node (leave out --compose)')
+            raise ConfigError(f'cannot kill {k.node}: it is not running in this run')
+    with scoped_environ(opts.environment()):
+        return _run(exp, out_dir, bag, specs, by_name, opts, progress, hosts, rclpy)
+
+
+def _run(
+    exp: Experiment,
+    out_dir: Path,
+    bag: Path,
+    specs: list[NodeSpec],
+    by_name: dict[str, NodeSpec],
+    opts: RunOptions,
+    progress: Progress,
+    hosts: NetnsHosts | None,
+    rclpy: Any,
+) -> Path:
     killed: set[Kill] = set()
     restarted: set[Kill] = set()
+    kills = opts.kills
+    rtf = opts.rtf
+    startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
-    (out_dir / 'logs' / 'fusion.journal').unlink(missing_ok=True)
     env = dict(os.environ)
     owns_rclpy = not rclpy.ok()
     if owns_rclpy:
         rclpy.init()
     monitor = _Monitor([s.name for s in specs[:-1]])
     launcher: Launcher | Composition
-    if compose:
+    if opts.compose:
         from activesurv_bringup.compose import Composition
 
         launcher = Composition()

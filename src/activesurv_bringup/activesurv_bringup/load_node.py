@@ -24,13 +24,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from activesurv_bringup.spin import run_until_signal
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
 
 
 def stream_topic(camera_id: str) -> str:
@@ -52,17 +52,21 @@ def cdr_header(data: bytes) -> tuple[float, str]:
     return sec + 1e-9 * nanosec, data[16 : 16 + n - 1].decode('utf-8', 'replace')
 
 
+PARAMS = (
+    Param('role', 'stream', 'stream images or count them', choices=('stream', 'count')),
+    Param('camera_ids', ['cam1', 'cam2', 'cam3', 'cam4'], 'one stream per camera'),
+    Param('rate', 30.0, 'Hz per stream', above=0.0),
+    Param('width', 640, 'image width (px)', minimum=1),
+    Param('height', 480, 'image height (px)', minimum=1),
+    Param('summary_file', '', 'count role: JSON written here on stop'),
+    Param('raw', True, 'count role: read only stamp and sequence from the CDR bytes'),
+)
+
+
 class ImageLoadNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('image_load', **kwargs)
-        d = ParameterDescriptor
-        self.declare_parameter('role', 'stream', d(description='stream or count'))
-        self.declare_parameter('camera_ids', ['cam1', 'cam2', 'cam3', 'cam4'])
-        self.declare_parameter('rate', 30.0, d(description='Hz per stream'))
-        self.declare_parameter('width', 640)
-        self.declare_parameter('height', 480)
-        self.declare_parameter('summary_file', '', d(description='count role: JSON written here'))
-        self.declare_parameter('raw', True, d(description='count role: read only the header'))
+        declare(self, PARAMS)
         g = self.get_parameter
         self.role = str(g('role').value)
         self.cameras = [str(c) for c in g('camera_ids').value]
@@ -155,7 +159,7 @@ def write_summary(node: ImageLoadNode) -> None:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_until_signal('image_load', ImageLoadNode, write_summary, args)
+    return run_node('image_load', ImageLoadNode, args, on_stop=write_summary)
 
 
 if __name__ == '__main__':

@@ -25,21 +25,23 @@ from numpy.typing import NDArray
 
 from activesurv_bringup.evaluation import DemandRecord, observed_visibility
 from activesurv_bringup.experiment import Experiment
-from activesurv_bringup.faults import Fault
-from activesurv_dispatch.motion import Capture, CaptureScheduler, MotionController
-from activesurv_dispatch.planner import Demand, DispatchPlanner
+from activesurv_bringup.faults import Fault, FaultKind, imager_injection
+from activesurv_common.camera_model import overhead_camera
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_dispatch.motion import Capture
+from activesurv_dispatch.planner import Demand
+from activesurv_dispatch.session import Dispatcher, DispatcherConfig
 from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
 from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
-from activesurv_imaging.camera_model import overhead_camera
-from activesurv_imaging.geometry import Transform, matrix_from_quaternion
-from activesurv_imaging.observation import ObservationStatus, observe_marker, perturb
-from activesurv_imaging.render import Renderer, SensorNoise
-from activesurv_imaging.sim_camera import ObjectGeometry, object_scene
+from activesurv_imaging.capture import CaptureCore, ImagerConfig
+from activesurv_imaging.observation import ObservationStatus
+from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
-from activesurv_prediction.overhead import overhead_fix
 from activesurv_prediction.predictor import TargetPredictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace
+from activesurv_sim.render import Renderer, SensorNoise
+from activesurv_sim.sim_camera import ObjectGeometry, object_scene
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
 
@@ -51,6 +53,7 @@ Progress = Callable[[int, int, float], None]
 class _Camera:
     axes: list[AxisSimulator]
     renderer: Renderer
+    imager: CaptureCore[NDArray[np.uint8]]
     first_frame: NDArray[np.uint8] | None = None
 
     def joints(self, t: float) -> Array:
@@ -81,7 +84,7 @@ def run_lockstep(
     noise = SensorNoise()
     geometry = ObjectGeometry(exp.setup.marker_radius, exp.setup.marker_radius)
     by_cam = {f.camera: f for f in faults}
-    dead = {c for c, f in by_cam.items() if f.kind == 'dead'}
+    dead = {c for c, f in by_cam.items() if f.kind is FaultKind.DEAD}
 
     # Prediction
     pose = [float(v) for v in cfg['overhead']['pose']]
@@ -100,13 +103,20 @@ def run_lockstep(
     om = exp.object_model
     target_geo = TargetGeometry.create(om.side_offset, om.side_normal)
 
-    # Dispatch and stages
+    # Dispatch, stages and imagers: the same session cores as the nodes
     dc = cfg['dispatch']
-    planner = DispatchPlanner(
-        exp.setup, exp.model, int(cfg['k']), float(dc['rho']), float(dc['settle_time'])
+    dispatcher = Dispatcher(
+        exp.setup,
+        exp.model,
+        DispatcherConfig(
+            int(cfg['k']),
+            float(dc['rho']),
+            float(dc['capture_lead']),
+            float(dc['settle_time']),
+            # Lockstep hears every camera every step: liveness never expires.
+            camera_timeout=float('inf'),
+        ),
     )
-    motion = MotionController(exp.setup)
-    scheduler = CaptureScheduler(float(dc['capture_lead']))
     cameras = {
         s.camera_id: _Camera(
             [
@@ -114,13 +124,23 @@ def run_lockstep(
                 for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
             ],
             Renderer(s.camera),
+            CaptureCore(
+                ImagerConfig(
+                    s.camera_id,
+                    exp.setup.marker_radius,
+                    **imager_injection(by_cam.get(s.camera_id)),  # type: ignore[arg-type]
+                ),
+                s.mount,
+                exp.model,
+                _identity,
+                s.camera,
+            ),
         )
         for s in exp.setup.sensors
         if s.camera_id not in dead
     }
     z_sigma = float(cfg['fusion']['z_sigma'])
 
-    demands: dict[int, Demand] = {}
     records: dict[int, DemandRecord] = {}
     dt = 1.0 / float(cfg['overhead']['rate'])
     n_steps = int(np.ceil(exp.end_time / dt)) + 1
@@ -137,34 +157,28 @@ def run_lockstep(
             for p in predict_demands(
                 tracker.predictor, schedule, target_geo, om.top_height, t, int(pc['horizon'])
             ):
-                d = Demand(p.index, p.instant, p.position, p.normal, p.covariance)
-                demands[d.index] = d
-                horizon.append(d)
-        joints = {c: cam.joints(t) for c, cam in cameras.items()}
-        plan = planner.plan(t, horizon, joints)
-        for cmd in motion.commands(plan, demands):
+                horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
+        for c, cam in cameras.items():
+            dispatcher.on_joints(c, cam.joints(t), t)
+        out = dispatcher.set_horizon(horizon, t)
+        out.merge(dispatcher.tick(t, serviced_until=t + dt - 1e-9))
+        for cmd in out.goals:
             for ax, goal, v in zip(
                 cameras[cmd.camera_id].axes, cmd.positions, cmd.max_velocities, strict=True
             ):
                 with contextlib.suppress(LimitError):  # planned poses are inside the limits
                     ax.command(t, float(goal), float(v))
-        capture = scheduler.due(t, plan, demands)
-        if capture is not None:
-            planner.close(capture.demand.index)
-            motion.holding.update(capture.cameras)
-            if plan_log is not None:
-                plan_log.append((capture.demand.index, capture.cameras))
-        for done in scheduler.newly_serviced(t + dt - 1e-9):
+        if plan_log is not None:
+            plan_log.extend((c.demand.index, c.cameras) for c in out.captures)
+        for done in out.serviced:
             records[done.demand.index] = _capture(
-                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma, dead
+                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma
             )
-            planner.serviced(done.demand.index)
-            motion.holding.difference_update(done.cameras)
             if progress:
                 progress(len(records), len(exp.demand_times), done.demand.time)
 
     truth = exp.demands_on(expected=False)
-    out = []
+    out_records = []
     for d in truth:
         r = records.get(d.index)
         if r is None:
@@ -176,8 +190,12 @@ def run_lockstep(
                 status='not_captured',
                 reason='the demand passed before a track and an assignment existed',
             )
-        out.append(r)
-    return out
+        out_records.append(r)
+    return out_records
+
+
+def _identity(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    return image
 
 
 def _capture(
@@ -189,7 +207,6 @@ def _capture(
     noise: SensorNoise,
     geometry: ObjectGeometry,
     z_sigma: float,
-    dead: set[str],
 ) -> DemandRecord:
     started = time.perf_counter()
     tj = capture.demand.time
@@ -198,41 +215,22 @@ def _capture(
     answers: dict[str, Answer] = {}
     poses: dict[str, Array] = {}
     for cid in capture.cameras:
-        if cid in dead or cid not in cameras:
-            continue
+        if cid not in cameras:
+            continue  # a dead camera: no answer
         cam = cameras[cid]
-        sensor = exp.setup.sensor(cid)
         q = cam.joints(tj)
-        T = (
-            sensor.mount.camera_pose(float(q[0]), float(q[1]))
-            if sensor.has_linear
-            else sensor.mount.camera_pose(0.0, float(q[0]))
-        )
-        fault = faults.get(cid)
+        T = exp.setup.sensor(cid).mount.pose_from_joints(q)
         img = cam.renderer.render(T, scene, noise, rng)
-        if fault is not None and fault.kind == 'frozen':
+        fault = faults.get(cid)
+        if fault is not None and fault.kind is FaultKind.FROZEN:
             if cam.first_frame is None:
                 cam.first_frame = img
             img = cam.first_frame
-        obs = observe_marker(
-            img,
-            sensor.camera,
-            T,
-            exp.setup.marker_radius,
-            exp.model,
-            cid,
-            capture.demand.index,
-            tj,
-            capture.demand.normal,
-            fault is not None and fault.kind == 'flip',
-        )
-        if fault is not None and fault.kind in ('bias', 'noise'):
-            obs = perturb(
-                obs,
-                fault.magnitude if fault.kind == 'bias' else 0.0,
-                fault.magnitude if fault.kind == 'noise' else 0.0,
-                rng,
-            )
+        # The imager's own rule: the frame at t_j and the stage state at t_j.
+        cam.imager.request(capture.demand.index, tj, capture.demand.normal)
+        cam.imager.add_frame(tj, img)
+        cam.imager.add_joints(tj, q)
+        obs = cam.imager.poll(tj)[0]
         if (
             obs.status is not ObservationStatus.OK
             or obs.position is None

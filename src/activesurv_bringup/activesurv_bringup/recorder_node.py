@@ -20,14 +20,12 @@ rebuilds the index and ``metadata.yaml`` from what is on disk.
 
 from __future__ import annotations
 
-import importlib
 import json
 import sys
 import threading
 from pathlib import Path
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -41,38 +39,34 @@ from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
 )
 from std_msgs.msg import String
 
-from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, open_writer
+from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, message_class, open_writer
 from activesurv_bringup.errors import BagError
-from activesurv_bringup.spin import run_until_signal
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
 
-STATUS_TOPIC = '/activesurv/recorder_status'
+STATUS_TOPIC = topics.RECORDER_STATUS
 
 
-def message_class(type_name: str) -> Any:
-    """The Python class of ``pkg/msg/Name``."""
-    pkg, kind, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+PARAMS = (
+    Param('output', '', 'bag directory (must not exist)'),
+    Param('image_rate', 2.0, 'Hz per thinned topic; 0: all', minimum=0.0),
+    Param('exclude', ['/rosout', '/parameter_events'], 'topics not recorded'),
+    Param('discovery_period', 0.5, 's between topic discoveries', above=0.0),
+    Param('run_info', '{}', 'JSON stored in the bag'),
+    Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
+    Param(
+        'thin_topics',
+        ['/overhead/image_raw', '/overhead/camera_info'],
+        'streams thinned to image_rate',
+    ),
+)
 
 
 class RecorderNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('recorder', **kwargs)
-        d = ParameterDescriptor
-        self.declare_parameter('output', '', d(description='bag directory (must not exist)'))
-        self.declare_parameter('image_rate', 2.0, d(description='Hz per image topic; 0: all'))
-        self.declare_parameter(
-            'exclude', ['/rosout', '/parameter_events'], d(description='topics not recorded')
-        )
-        self.declare_parameter('discovery_period', 0.5, d(description='s between discoveries'))
-        self.declare_parameter('run_info', '{}', d(description='JSON stored in the bag'))
-        self.declare_parameter(
-            'flush_period', 0.5, d(description='s between flushes to disk (SIGKILL loses less)')
-        )
-        self.declare_parameter(
-            'thin_topics',
-            ['/overhead/image_raw', '/overhead/camera_info'],
-            d(description='streams thinned to image_rate'),
-        )
+        declare(self, PARAMS)
         g = self.get_parameter
         output = str(g('output').value)
         if not output:
@@ -102,7 +96,7 @@ class RecorderNode(Node):
             raise BagError(f'flush_period must be > 0 s, got {flush_period}')
         self.create_timer(flush_period, self._flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.exclude.add(STATUS_TOPIC)
-        self._status_pub = self.create_publisher(String, STATUS_TOPIC, 10)
+        self._status_pub = self.create_publisher(String, STATUS_TOPIC, qos.STATUS)
 
     def _flush(self) -> None:
         with self._lock:
@@ -193,7 +187,7 @@ class RecorderNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_until_signal('recorder', RecorderNode, RecorderNode.close, args, (BagError,))
+    return run_node('recorder', RecorderNode, args, on_stop=RecorderNode.close, errors=(BagError,))
 
 
 if __name__ == '__main__':

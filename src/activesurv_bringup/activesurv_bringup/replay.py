@@ -20,11 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.bagio import read_bag, run_info
+from activesurv_bringup.bagio import message_class, read_bag, run_info
 from activesurv_bringup.errors import BagError, NodeDiedError
 from activesurv_bringup.graph import mount_parameters
 from activesurv_bringup.launcher import Launcher, NodeSpec
-from activesurv_bringup.recorder_node import message_class
 from activesurv_dispatch.sensors import load_setup
 
 Progress = Callable[[str], None]

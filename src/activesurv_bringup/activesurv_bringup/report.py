@@ -34,9 +34,9 @@ from activesurv_bringup.evaluation import (
     visibility_from_transforms,
     write_results,
 )
-from activesurv_imaging.geometry import Transform, matrix_from_quaternion
-from activesurv_imaging.sensor_model import SensorModel
-from activesurv_imaging.timeseries import TimeSeries
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.sensor_model import SensorModel
+from activesurv_common.timeseries import TimeSeries
 
 TOPICS = {'/object_state', '/capture_request', '/marker_observations', '/target_estimate'}
 STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}

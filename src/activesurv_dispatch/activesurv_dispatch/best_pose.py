@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.sensors import Sensor
 from activesurv_dispatch.visibility import visibility_from_variances
-from activesurv_imaging.sensor_model import SensorModel
 from activesurv_stages.kinematics import reachable_distance
 
 Array = NDArray[np.float64]

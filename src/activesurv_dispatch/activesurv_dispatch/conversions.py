@@ -6,10 +6,10 @@ import numpy as np
 from geometry_msgs.msg import Point
 from visualization_msgs.msg import Marker, MarkerArray
 
+from activesurv_common.ros.conversions import pose_from_transform, sec_to_time, time_to_sec
 from activesurv_dispatch.motion import Capture, StageCommand
 from activesurv_dispatch.planner import Demand, Plan, Role
 from activesurv_dispatch.sensors import Setup
-from activesurv_imaging.conversions import pose_from_transform, sec_to_time, time_to_sec
 from activesurv_interfaces.msg import (
     CaptureRequest,
     DemandHorizon,
@@ -51,11 +51,7 @@ def plan_to_msg(plan: Plan, setup: Setup, replans: int, frame_id: str) -> Dispat
         sa.joint_names = list(s.joint_names)
         sa.desired_positions = [float(v) for v in a.desired]
         q = a.desired
-        T = (
-            s.mount.camera_pose(float(q[0]), float(q[1]))
-            if s.has_linear
-            else s.mount.camera_pose(0.0, float(q[0]))
-        )
+        T = s.mount.pose_from_joints(q)
         sa.desired_camera_pose = pose_from_transform(T)
         sa.expected_visibility = float(a.visibility)
         msg.assignments.append(sa)
@@ -108,11 +104,7 @@ def plan_markers(
         a = plan.assignments.get(s.camera_id)
         if q is None or a is None:
             continue
-        T = (
-            s.mount.camera_pose(float(q[0]), float(q[1]))
-            if s.has_linear
-            else s.mount.camera_pose(0.0, float(q[0]))
-        )
+        T = s.mount.pose_from_joints(q)
         r, g, b = _COLOURS[a.role]
         m = Marker(ns='cameras', id=mid, type=Marker.ARROW, action=Marker.ADD)
         mid += 1

@@ -24,11 +24,11 @@ from itertools import permutations
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import aim_yaw, best_achievable_pose, view_batch
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Sensor, Setup
-from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
 ALREADY_WEIGHT = 0.25

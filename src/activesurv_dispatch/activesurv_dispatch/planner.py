@@ -44,6 +44,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
     Candidate,
     Target,
@@ -55,9 +56,14 @@ from activesurv_dispatch.best_pose import (
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.sensors import Sensor, Setup
 from activesurv_dispatch.visibility import fused_visibility
-from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
+
+
+IDEAL_BEARING = math.radians(40.0)
+"""Bearing (angle between the optical axis and the marker normal) at which the packaged sensor
+model's visibility peaks (40-45 deg, paper Appendix A: "between 20 and 40 deg"); the stage-2
+ranking measures each camera's distance to the linear position that gives it."""
 
 
 class Role(Enum):
@@ -174,16 +180,17 @@ class DispatchPlanner:
         f = self._frozen.get(index)
         return f.cameras if f else ()
 
-    def exclude(self, camera_id: str, dead: bool = True) -> None:
-        """Take a camera out of (or back into) dispatching, e.g. when its nodes died."""
-        if dead:
-            self.excluded.add(camera_id)
-            for f in self._frozen.values():
-                if camera_id in f.cameras:
-                    f.cameras = tuple(c for c in f.cameras if c != camera_id)
-                    f.desired.pop(camera_id, None)
-        else:
-            self.excluded.discard(camera_id)
+    def exclude(self, camera_id: str) -> None:
+        """Take a camera out of dispatching (its nodes died); its frozen slots are freed."""
+        self.excluded.add(camera_id)
+        for f in self._frozen.values():
+            if camera_id in f.cameras:
+                f.cameras = tuple(c for c in f.cameras if c != camera_id)
+                f.desired.pop(camera_id, None)
+
+    def include(self, camera_id: str) -> None:
+        """Put a camera back into dispatching (its nodes are heard again)."""
+        self.excluded.discard(camera_id)
 
     # -- ranking -----------------------------------------------------------------------------
     def _can_ever_see(self, sensor: Sensor, demand: Demand) -> bool:
@@ -205,12 +212,12 @@ class DispatchPlanner:
         ]
         dist = [abs(yaw_goal - q0[-1]) / max(lims[-1].max_velocity * max(dt, 1e-3), 1e-12)]
         if sensor.has_linear:
-            # The ideal linear position: where the bearing is about 40 degrees (the sensor
-            # model's optimum) on the camera's side, within the stage range.
+            # The ideal linear position: where the bearing is the sensor model's optimum on the
+            # camera's side, within the stage range.
             centre, _ = camera_frames(sensor, q0[None, :])
             dy = abs(demand.position[1] - centre[0, 1])
             side = 1.0 if centre[0, 0] >= demand.position[0] else -1.0
-            x_goal = demand.position[0] + side * dy * math.tan(math.radians(40.0))
+            x_goal = demand.position[0] + side * dy * math.tan(IDEAL_BEARING)
             axis = sensor.mount.linear_axis
             assert axis is not None
             s_goal = float(

@@ -17,9 +17,9 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from activesurv_common.camera_model import CameraModel, dynamic_camera
+from activesurv_common.mount import CameraMount
 from activesurv_dispatch.errors import DispatchConfigError
-from activesurv_imaging.camera_model import CameraModel, dynamic_camera
-from activesurv_imaging.mount import CameraMount
 from activesurv_stages.config import MotionClass, motion_class
 from activesurv_stages.kinematics import AxisLimits
 

@@ -12,12 +12,13 @@ planner uses that to score thousands of candidate poses at once.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.errors import InformationError
+from activesurv_common.information import covariance_visibility, information_fusion
 from activesurv_dispatch.errors import VisibilityError
 
 Array = NDArray[np.float64]
@@ -38,25 +39,20 @@ def single_visibility(R: ArrayLike) -> float:
     Raises:
         VisibilityError: (a ValueError) for a non-square or non-finite matrix.
     """
-    norm = float(np.linalg.norm(_square(R), 'fro'))
-    return math.inf if norm == 0.0 else 1.0 / norm
+    return covariance_visibility(_square(R))
 
 
 def fused_covariance(Rs: Sequence[ArrayLike]) -> Array:
-    """``P = (sum R_i^-1)^-1`` (pseudo-inverses where a matrix is singular)."""
+    """``P = (sum R_i^-1)^-1`` (eq. 2; :func:`activesurv_common.information.information_fusion`).
+
+    Raises:
+        VisibilityError: for an empty list or malformed matrices.
+    """
     mats = [_square(R, f'R[{i}]') for i, R in enumerate(Rs)]
-    if not mats:
-        raise VisibilityError('fused_covariance needs at least one matrix')
-    if any(m.shape != mats[0].shape for m in mats):
-        raise VisibilityError('all covariances must have the same shape')
-
-    def inv(m: Array) -> Array:
-        try:
-            return np.asarray(np.linalg.inv(m), dtype=np.float64)
-        except np.linalg.LinAlgError:
-            return np.asarray(np.linalg.pinv(m), dtype=np.float64)
-
-    return inv(sum((inv(m) for m in mats), np.zeros_like(mats[0])))
+    try:
+        return information_fusion(mats)
+    except InformationError as exc:
+        raise VisibilityError(str(exc)) from exc
 
 
 def fused_visibility(Rs: Sequence[ArrayLike]) -> float:
@@ -67,8 +63,7 @@ def fused_visibility(Rs: Sequence[ArrayLike]) -> float:
     """
     if len(Rs) == 0:
         return 0.0
-    norm = float(np.linalg.norm(fused_covariance(Rs), 'fro'))
-    return math.inf if norm == 0.0 else 1.0 / norm
+    return covariance_visibility(fused_covariance(Rs))
 
 
 def visibility_from_variances(variances: ArrayLike) -> Array:

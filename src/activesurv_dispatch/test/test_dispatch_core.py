@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
     Target,
     best_achievable_pose,
@@ -23,7 +24,6 @@ from activesurv_dispatch.motion import CaptureScheduler, MotionController
 from activesurv_dispatch.planner import Demand, DispatchPlanner, Role
 from activesurv_dispatch.sensors import load_setup
 from activesurv_dispatch.visibility import fused_visibility, single_visibility
-from activesurv_imaging.sensor_model import SensorModel
 
 MODEL = SensorModel.load()
 NORMAL = np.array([0.0, -1.0, 0.0])
@@ -44,8 +44,9 @@ def test_visibility_is_eq_1_and_2() -> None:
     assert fused_visibility([]) == 0.0
     A = np.array([[2.0, 0.5], [0.5, 1.0]])  # any square matrix
     B = np.array([[1.0, 0.0], [0.0, 3.0]])
-    P = np.linalg.inv(np.linalg.inv(A) + np.linalg.inv(B))
-    assert fused_visibility([A, B]) == pytest.approx(1.0 / np.linalg.norm(P, 'fro'))
+    # By hand: A^-1 + B^-1 = [[11/7, -2/7], [-2/7, 31/21]], so P = [[31, 6], [6, 33]] / 47
+    # and ||P||_F = sqrt(31^2 + 2 * 6^2 + 33^2) / 47 = sqrt(2122) / 47.
+    assert fused_visibility([A, B]) == pytest.approx(47.0 / math.sqrt(2122.0))
     with pytest.raises(ValueError, match='square'):
         single_visibility(np.zeros((2, 3)))
     with pytest.raises(ValueError, match='NaN'):

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from rclpy.parameter import Parameter
 
-from activesurv_dispatch import qos, topics
+from activesurv_common.ros import qos, topics
 from activesurv_dispatch.dispatcher_node import DispatcherNode
 from activesurv_dispatch.sensors import load_setup
 
@@ -58,7 +58,9 @@ def test_horizon_to_goals_plan_and_capture(
             js_pubs[s.camera_id].publish(js)
 
     try:
-        assert spin_until([node, peer], lambda: (publish_joints(), len(node.joints) == 4)[1])
+        assert spin_until(
+            [node, peer], lambda: (publish_joints(), len(node.session.joints) == 4)[1]
+        )
         now = peer.get_clock().now().nanoseconds * 1e-9
         h = DemandHorizon(track_state=DemandHorizon.TRACK_CONFIRMED)
         for j in range(3):

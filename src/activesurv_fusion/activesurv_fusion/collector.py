@@ -14,8 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 
-import numpy as np
-
+from activesurv_common.information import covariance_visibility
 from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
 from activesurv_fusion.pose_fusion import FusedPose, PoseReading, fuse_poses
 
@@ -173,7 +172,7 @@ class DemandResult:
         """v_f = 1 / ||P||_F of the cameras used (eq. 2); 0 without an estimate."""
         if self.fused is None:
             return 0.0
-        return float(1.0 / np.linalg.norm(self.fused.covariance))
+        return covariance_visibility(self.fused.covariance)
 
 
 def resolve(batch: DemandBatch, z: float = 3.0, max_faulty: int | None = None) -> DemandResult:

@@ -17,8 +17,8 @@ __all__ = [
     'sec_to_time',
     'time_to_sec',
 ]
-from activesurv_imaging.conversions import sec_to_time, time_to_sec
-from activesurv_imaging.geometry import normal_to_rotation_covariance, quaternion_from_normal
+from activesurv_common.geometry import normal_to_rotation_covariance, quaternion_from_normal
+from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.information import information_fusion
 from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
 from activesurv_fusion.optimal_region import (
     OptimalRegion,
@@ -99,22 +100,6 @@ class FusedPose:
     cameras_used: tuple[str, ...]
     cameras_faulty: tuple[str, ...]
     regions: tuple[OptimalRegion, ...]
-
-
-def _inverse(m: NDArray[np.float64]) -> NDArray[np.float64]:
-    try:
-        return np.asarray(np.linalg.inv(m), dtype=np.float64)
-    except np.linalg.LinAlgError:
-        return np.asarray(np.linalg.pinv(m), dtype=np.float64)  # singular: pseudo-inverse
-
-
-def information_fusion(covariances: Sequence[NDArray[np.float64]]) -> NDArray[np.float64]:
-    """``P = (sum R_i^-1)^-1`` (eq. 2); singular matrices fall back to pseudo-inverses."""
-    if not covariances:
-        raise InvalidReadingError('information_fusion needs at least one covariance')
-    info = _inverse(np.asarray(covariances, dtype=np.float64)).sum(axis=0)  # one batched inverse
-    P = _inverse(info)
-    return np.asarray(0.5 * (P + P.T), dtype=np.float64)
 
 
 def fuse_poses(

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 
-from activesurv_fusion import qos, topics
+from activesurv_common.ros import qos, topics
 from activesurv_fusion.fusion_node import FusionNode
 
 

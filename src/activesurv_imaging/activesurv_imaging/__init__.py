@@ -1,2 +1,3 @@
-"""Imaging module: camera models, simulated cameras, circular-marker detection, weighted
-ellipse fit, circle pose from the ellipse, sensor model, and the imager node."""
+"""Imaging module (vision only): circular-marker detection, weighted ellipse fit, circle pose
+from the ellipse, world observations, overhead fixes, OpenCV calibration, and the imager and
+overhead_locator nodes."""

@@ -27,15 +27,15 @@ import cv2
 import numpy as np
 import yaml
 
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.mount import solve_rotation_centre
 from activesurv_imaging.calibration import (
     board_pose,
     calibrate_intrinsics,
     camera_extrinsics,
 )
-from activesurv_imaging.camera_model import CameraModel
-from activesurv_imaging.errors import ImagingError
-from activesurv_imaging.geometry import Transform, matrix_from_quaternion
-from activesurv_imaging.mount import solve_rotation_centre
+from activesurv_imaging.errors import ImagingError, VisionErrors
 
 
 def _squares(text: str) -> tuple[int, int]:
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
                 f'rotation centre {np.round(centre, 5).tolist()} m; camera offset '
                 f'{np.round(offset, 5).tolist()} m -> {args.out}'
             )
-    except (ImagingError, OSError) as exc:
+    except (*VisionErrors, OSError) as exc:
         print(f'activesurv_calibrate {args.command}: error: {exc}', file=sys.stderr)
         return 1
     return 0

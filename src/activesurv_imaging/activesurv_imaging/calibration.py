@@ -7,7 +7,7 @@
 Boards are described by their number of squares (columns, rows) and the square side; OpenCV
 works with the inner corners, (columns - 1) x (rows - 1). The board frame has its origin at the
 board centre, x along the columns, y along the rows, and z pointing away from the side the
-cameras see (OpenCV's convention; in :meth:`activesurv_imaging.render.Plate.checkerboard` that
+cameras see (OpenCV's convention; in :meth:`activesurv_sim.render.Plate.checkerboard` that
 is the plate's ``normal``, with ``x_axis`` the board's x; the square at column 0, row 0 is dark).
 """
 
@@ -20,11 +20,11 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_imaging.camera_model import CameraModel
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform
+from activesurv_common.mount import R0, CameraMount
 from activesurv_imaging.detect import as_gray8
 from activesurv_imaging.errors import CalibrationError
-from activesurv_imaging.geometry import Transform
-from activesurv_imaging.mount import R0, CameraMount
 
 Array = NDArray[np.float64]
 

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.geometry import angle_between, unit
 from activesurv_imaging.ellipse import Ellipse
 from activesurv_imaging.errors import CirclePoseError
-from activesurv_imaging.geometry import angle_between, unit
 
 Array = NDArray[np.float64]
 

@@ -1,22 +1,32 @@
-"""Exceptions of the imaging package. Core code raises these; nodes catch and report them."""
+"""Exceptions of the imaging package. Core code raises these; nodes catch and report them.
+
+Camera-model, mount and geometry errors are the shared core's (``activesurv_common.errors``);
+they are re-exported here so that ``except CalibrationError`` reads the same in imaging code.
+"""
 
 from __future__ import annotations
+
+from activesurv_common.errors import (
+    CalibrationError,
+    CommonError,
+    GeometryError,
+    SensorModelError,
+)
+
+__all__ = [
+    'CalibrationError',
+    'CirclePoseError',
+    'CommonError',
+    'EllipseFitError',
+    'GeometryError',
+    'ImagingError',
+    'SensorModelError',
+    'VisionErrors',
+]
 
 
 class ImagingError(Exception):
     """Base class of all activesurv_imaging errors."""
-
-
-class GeometryError(ImagingError, ValueError):
-    """A geometric quantity is malformed (wrong shape, non-finite, zero length)."""
-
-
-class CalibrationError(ImagingError, ValueError):
-    """A camera calibration (intrinsics, extrinsics, mount) is missing or malformed."""
-
-
-class RenderError(ImagingError, ValueError):
-    """A simulated scene or rendering setting is invalid."""
 
 
 class EllipseFitError(ImagingError, ValueError):
@@ -27,5 +37,5 @@ class CirclePoseError(ImagingError, ValueError):
     """No circle pose follows from the ellipse (degenerate cone, marker behind the camera)."""
 
 
-class SensorModelError(ImagingError, ValueError):
-    """A sensor model file or query is invalid."""
+# What a vision step may raise on bad input: catch these together where a node reports them.
+VisionErrors = (ImagingError, CommonError)

@@ -12,7 +12,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_imaging.camera_model import CameraModel
+from activesurv_common.camera_model import CameraModel
 from activesurv_imaging.circle_pose import CirclePose, choose_pose, circle_poses
 from activesurv_imaging.detect import (
     DetectionStatus,

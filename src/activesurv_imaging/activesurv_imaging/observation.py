@@ -13,12 +13,12 @@ from enum import Enum
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_imaging.camera_model import CameraModel
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform, unit
+from activesurv_common.sensor_model import SensorModel
 from activesurv_imaging.ellipse import Ellipse
-from activesurv_imaging.errors import ImagingError
-from activesurv_imaging.geometry import Transform, unit
+from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
-from activesurv_imaging.sensor_model import SensorModel
 
 Array = NDArray[np.float64]
 
@@ -83,11 +83,11 @@ def observe_marker(
     if prior_normal_world is not None:
         try:
             prior = T_world_camera.inverse().rotate(unit(prior_normal_world, 'prior normal'))
-        except ImagingError:
+        except VisionErrors:
             prior = None  # a zero or NaN prior: fall back to the frontal choice
     try:
         m = measure_marker(image, camera, radius, prior)
-    except ImagingError as exc:
+    except VisionErrors as exc:
         return failed(
             camera_id,
             demand_index,

@@ -7,11 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from activesurv_imaging.camera_model import dynamic_camera
+from activesurv_common.camera_model import dynamic_camera
+from activesurv_common.geometry import angle_between, rotation_between
 from activesurv_imaging.circle_pose import choose_pose, circle_poses
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse
 from activesurv_imaging.errors import CirclePoseError
-from activesurv_imaging.geometry import angle_between, rotation_between
 
 CAM = dynamic_camera()
 RADIUS = 0.0125

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from activesurv_imaging.camera_model import dynamic_camera
+from activesurv_common.camera_model import dynamic_camera
+from activesurv_common.geometry import angle_between
 from activesurv_imaging.circle_pose import choose_pose, circle_poses
 from activesurv_imaging.detect import (
     DetectionStatus,
@@ -13,8 +14,7 @@ from activesurv_imaging.detect import (
     detect_marker_detailed,
 )
 from activesurv_imaging.errors import ImagingError
-from activesurv_imaging.geometry import angle_between
-from activesurv_imaging.render import Plate, Scene, SensorNoise, look_at, render
+from activesurv_sim.render import Plate, Scene, SensorNoise, look_at, render
 
 CAM = dynamic_camera()
 MARKER = np.array([0.2, 0.1, 0.05])

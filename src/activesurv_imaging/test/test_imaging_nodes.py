@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 
-from activesurv_imaging import qos, topics
+from activesurv_common.ros import qos, topics
 from activesurv_imaging.imager_node import ImagerNode
-from activesurv_imaging.sim_camera_node import SimCameraNode
+from activesurv_sim.sim_camera_node import SimCameraNode
 
 MARKER = np.array([0.2, 0.0, 0.05])
 BEARING = math.radians(30.0)

@@ -11,20 +11,20 @@ import numpy as np
 import pytest
 import yaml
 
+from activesurv_bringup.sensor_model_experiment import fit_model, run_experiment
+from activesurv_common.camera_model import CameraModel, overhead_camera
+from activesurv_common.geometry import Transform, rot_x, rot_y
+from activesurv_common.mount import CameraMount, solve_rotation_centre
+from activesurv_common.sensor_model import SensorModel, view_geometry
+from activesurv_common.timeseries import FrameBuffer, TimeSeries
 from activesurv_imaging.calibration import (
     board_pose,
     calibrate_intrinsics,
     camera_extrinsics,
     mount_from_extrinsics,
 )
-from activesurv_imaging.camera_model import CameraModel, overhead_camera
 from activesurv_imaging.errors import CalibrationError, SensorModelError
-from activesurv_imaging.geometry import Transform, rot_x, rot_y
-from activesurv_imaging.mount import CameraMount, solve_rotation_centre
-from activesurv_imaging.render import Plate, Scene, SensorNoise, look_at, render
-from activesurv_imaging.sensor_model import SensorModel, view_geometry
-from activesurv_imaging.sensor_model_experiment import fit_model, run_experiment
-from activesurv_imaging.timeseries import FrameBuffer, TimeSeries
+from activesurv_sim.render import Plate, Scene, SensorNoise, look_at, render
 
 MOUNT = CameraMount(
     'cam1',

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from activesurv_imaging.conversions import sec_to_time
-from activesurv_imaging.geometry import quaternion_from_normal
+from activesurv_common.geometry import quaternion_from_normal
+from activesurv_common.ros.conversions import sec_to_time
 from activesurv_interfaces.msg import DemandHorizon, DemandPoint
 from activesurv_prediction.demands import DemandPrediction
 from activesurv_prediction.tracker import TrackState

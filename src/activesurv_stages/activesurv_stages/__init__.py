@@ -1,2 +1,1 @@
-"""Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges, protocol emulators,
-simulated stages and the xy table."""
+"""Stepper-stage kinematics, Zaber ASCII and GRBL serial bridges and their emulators."""

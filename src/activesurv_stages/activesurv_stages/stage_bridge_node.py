@@ -11,43 +11,36 @@ blocks on the port and never dies of a serial fault.
 
 from __future__ import annotations
 
-import math
-import sys
 from dataclasses import replace
-from typing import Any, cast
+from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import StageGoal
-from activesurv_stages import qos, topics
 from activesurv_stages.bridge import BridgeWorker, LinkState
 from activesurv_stages.config import load_controller
 from activesurv_stages.conversions import goal_items, joint_state
 from activesurv_stages.drivers import make_driver
 from activesurv_stages.errors import StageError
 
+PARAMS = (
+    Param('config_file', '', 'controller YAML (required)'),
+    Param('camera_id', 'cam1', 'topic prefix'),
+    Param('port', '', 'serial port; overrides the file'),
+    Param('home_on_connect', True, 'home unreferenced axes'),
+    Param('reconnect_period', 1.0, 's between reconnects', above=0.0),
+)
+
 
 class StageBridgeNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('stage_bridge', **kwargs)
-        d = ParameterDescriptor
-        self.declare_parameter('config_file', '', d(description='controller YAML'))
-        self.declare_parameter('camera_id', 'cam1', d(description='topic prefix'))
-        self.declare_parameter('port', '', d(description='serial port; overrides the file'))
-        self.declare_parameter('home_on_connect', True, d(description='home unreferenced axes'))
-        self.declare_parameter('reconnect_period', 1.0, d(description='s between reconnects'))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        # Values given at start-up (YAML, --ros-args -p) pass the same checks as later changes.
-        declared = cast('dict[str, Parameter]', self.get_parameters_by_prefix(''))
-        startup = self._on_set_parameters([p for p in declared.values() if p.value is not None])
-        if not startup.successful:
-            raise ValueError(f'invalid parameter: {startup.reason}')
+        declare(self, PARAMS)
 
         g = self.get_parameter
         path = str(g('config_file').value)
@@ -78,16 +71,6 @@ class StageBridgeNode(Node):
         self.refusals = 0
         self.worker.start()
         self.get_logger().info(f'{cfg.protocol} controller on {cfg.port}: joints {self.joints}')
-
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        for p in params:
-            if p.name == 'reconnect_period' and (
-                not isinstance(p.value, float) or not math.isfinite(p.value) or p.value <= 0
-            ):
-                return SetParametersResult(
-                    successful=False, reason='reconnect_period must be a float > 0'
-                )
-        return SetParametersResult(successful=True)
 
     def _on_goal(self, msg: StageGoal) -> None:
         for joint, position, velocity in goal_items(msg):
@@ -149,27 +132,9 @@ class StageBridgeNode(Node):
         super().destroy_node()
 
 
-# A bad parameter or configuration file: one line on stderr and exit status 1, no traceback.
-STARTUP_ERRORS = (ValueError, OSError, ParameterException, StageError)
-
-
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = StageBridgeNode()
-    except STARTUP_ERRORS as exc:
-        print(f'stage_bridge: error: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node('stage_bridge', StageBridgeNode, args, errors=(StageError,))
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    raise SystemExit(main())

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -170,8 +169,6 @@ def test_errors_missing_port_and_silence(tmp_path: Path, zaber: ZaberEmulator) -
         _run('probe', '--protocol', 'zaber', '--port', str(tmp_path / 'nope')), 'does not exist'
     )
     zaber.freeze(10.0)
-    t0 = time.monotonic()
     out = _run('probe', '--protocol', 'zaber', '--port', str(zaber.link))
-    assert time.monotonic() - t0 < 8.0
     _one_line_error(out, 'within 2 s')
     _one_line_error(_run('probe', '--protocol', 'grbl', '--port', str(zaber.link)), 'within 2 s')

@@ -4,7 +4,6 @@ and stage_bridge driving an emulated Zaber controller end to end."""
 from __future__ import annotations
 
 import math
-import statistics
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -15,9 +14,9 @@ import pytest
 import yaml
 from rclpy.parameter import Parameter
 
-from activesurv_stages import qos, topics
+from activesurv_common.ros import qos, topics
+from activesurv_sim.sim_stage_node import SimStageNode
 from activesurv_stages.emulators import ZaberDeviceSpec, ZaberEmulator
-from activesurv_stages.sim_stage_node import SimStageNode
 from activesurv_stages.stage_bridge_node import StageBridgeNode
 
 
@@ -111,12 +110,12 @@ def test_xy_table_and_sim_stage_on_simulated_time(
     specs = [
         NodeSpec(
             'xy_table',
-            'activesurv_stages.xy_table_node',
+            'activesurv_sim.xy_table_node',
             parameters={'real_time_factor': 2.0, 'start_time': 0.5},
         ),
         NodeSpec(
             'sim_stage',
-            'activesurv_stages.sim_stage_node',
+            'activesurv_sim.sim_stage_node',
             parameters={'use_sim_time': True, 'motion_class': 'medium'},
         ),
     ]
@@ -246,7 +245,5 @@ def test_stage_bridge_node_against_emulator(
         bridge.destroy_node()
         peer.destroy_node()
         emu.close()
-    # The measured round trip (goal in -> first JointState showing motion), for the README.
-    median_ms = 1e3 * statistics.median(round_trips)
-    print(f'bridge round trip median {median_ms:.1f} ms over {len(round_trips)} goals')
-    assert median_ms < 2000.0  # a sanity bound, not a timing goal (those live in the bench)
+    # Every goal moved the axis (the round-trip time itself is measured by bench_stages.py).
+    assert len(round_trips) == 5

@@ -1,0 +1,120 @@
+"""How a graph run is run (``RunOptions``) and where its files go (output directories).
+
+Output directories are never deleted or overwritten: a directory that already holds files is
+refused, and commands without an explicit ``--out`` make a new timestamped one, as ``ros2 bag
+record`` does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.faults import Fault, Kill
+from activesurv_bringup.launcher import NodeSpec
+
+HOSTS = ('single', 'netns')
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Everything about a graph run that is not the experiment itself.
+
+    Attributes:
+        rtf: simulated seconds per wall second.
+        image_rate: Hz of the thinned image topics in the bag (0: all).
+        faults: camera faults to inject.
+        kills: nodes to SIGKILL (and restart) at simulated instants.
+        compose: every node in this process on one executor.
+        hosts: ``single``, or ``netns`` (each camera on a host of its own).
+        dds_profile: a Fast DDS XML profile for every node (a path), or None.
+        startup_timeout: wall seconds for the graph to come up.
+        extra: further nodes started with the graph (load generators).
+        thin: further topics the recorder thins to ``image_rate``.
+    """
+
+    rtf: float = 1.0
+    image_rate: float = 2.0
+    faults: tuple[Fault, ...] = ()
+    kills: tuple[Kill, ...] = ()
+    compose: bool = False
+    hosts: str = 'single'
+    dds_profile: Path | None = None
+    startup_timeout: float = 60.0
+    extra: tuple[NodeSpec, ...] = ()
+    thin: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.rtf) and self.rtf > 0.0):
+            raise ConfigError(f'--rtf must be a finite number > 0, got {self.rtf}')
+        if not (math.isfinite(self.image_rate) and self.image_rate >= 0.0):
+            raise ConfigError(f'--image-rate must be >= 0, got {self.image_rate}')
+        if self.hosts not in HOSTS:
+            raise ConfigError(f'--hosts must be one of {HOSTS}, got {self.hosts!r}')
+        if self.kills and self.compose:
+            raise ConfigError('killing nodes needs one process per node (leave out --compose)')
+        if self.dds_profile is not None and self.hosts == 'netns':
+            raise ConfigError('--dds-profile and --hosts netns do not mix (hosts use UDPv4)')
+
+    def environment(self) -> dict[str, str]:
+        """Environment variables every process of the run needs (this one included)."""
+        env: dict[str, str] = {}
+        if self.dds_profile is not None:
+            env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(self.dds_profile)
+        if self.hosts == 'netns':
+            # Discovery over the bridge (multicast on the subnet); no shared memory between hosts.
+            env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SUBNET'
+            env['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+        return env
+
+
+@contextlib.contextmanager
+def scoped_environ(updates: Mapping[str, str]) -> Iterator[None]:
+    """Set environment variables for the duration of a run, then restore them.
+
+    The orchestrator's own DDS participant (progress monitor) must see the same transport
+    settings as its node processes, so they go into this process's environment too.
+    """
+    old = {k: os.environ.get(k) for k in updates}
+    os.environ.update(updates)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def new_output_dir(out: Path) -> Path:
+    """``out``, created; refused if it already holds anything (nothing is ever overwritten).
+
+    Raises:
+        ConfigError: if ``out`` is a file or a non-empty directory.
+    """
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ConfigError(
+            f'{out} already exists and is not empty: give a new --out directory '
+            '(nothing is overwritten)'
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def timestamped_dir(parent: Path, prefix: str, now: datetime | None = None) -> Path:
+    """A new directory ``parent/<prefix>_YYYY_MM_DD-HH_MM_SS`` (a suffix if that exists)."""
+    stamp = (now or datetime.now()).strftime('%Y_%m_%d-%H_%M_%S')
+    path = parent / f'{prefix}_{stamp}'
+    n = 1
+    while path.exists():
+        path = parent / f'{prefix}_{stamp}_{n}'
+        n += 1
+    path.mkdir(parents=True)
+    return path

@@ -1,0 +1,198 @@
+"""Pinhole camera with OpenCV distortion (plumb-bob k1, k2, p1, p2, k3).
+
+Pixel coordinates follow OpenCV: x right, y down, integer values at pixel centres. The camera
+frame is ``<camera>_optical``: z forward, x right, y down. Defaults come from the paper's Table I:
+
+* dynamic cameras: 640x480, 1/4-inch CMOS (3.2 x 2.4 mm, 5 um pixels), 25 mm lens:
+  fx = fy = 25 mm / 5 um = 5000 px, so the 25 mm marker is 250 px across at 0.5 m and 208 px at
+  0.6 m (the paper's "about 200-250 pixels");
+* overhead camera: 640x480 CCD with a 12 mm lens. Table I does not give the sensor size; a
+  1/2-inch CCD (6.4 x 4.8 mm, 10 um pixels) is assumed: fx = 1200 px, so from 1.2 m it sees
+  0.64 m x 0.48 m, the whole 500 x 200 mm table with margin.
+
+YAML files use the ROS ``camera_calibration`` layout (``image_width``, ``camera_matrix``,
+``distortion_coefficients``, ...), which OpenCV users and ``camera_info_manager`` both read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_common.errors import CalibrationError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics of one camera.
+
+    Attributes:
+        width, height: image size in pixels.
+        K: 3x3 camera matrix.
+        dist: distortion coefficients (k1, k2, p1, p2, k3).
+        name: camera id, e.g. ``cam1`` or ``overhead``.
+    """
+
+    width: int
+    height: int
+    K: Array
+    dist: Array = field(default_factory=lambda: np.zeros(5))
+    name: str = 'camera'
+
+    def __post_init__(self) -> None:
+        K = np.asarray(self.K, dtype=np.float64)
+        dist = np.asarray(self.dist, dtype=np.float64).reshape(-1)
+        if self.width <= 0 or self.height <= 0:
+            raise CalibrationError(f'{self.name}: image size must be positive')
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+            raise CalibrationError(f'{self.name}: camera matrix must be a finite 3x3 matrix')
+        if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]):
+            raise CalibrationError(f'{self.name}: camera matrix needs fx, fy > 0 and [0 0 1]')
+        if dist.size not in (0, 4, 5, 8) or not np.all(np.isfinite(dist)):
+            raise CalibrationError(f'{self.name}: distortion must have 4, 5 or 8 finite values')
+        object.__setattr__(self, 'K', K)
+        object.__setattr__(self, 'dist', np.pad(dist, (0, max(0, 5 - dist.size))))
+
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+    @property
+    def has_distortion(self) -> bool:
+        return bool(np.any(self.dist != 0.0))
+
+    @staticmethod
+    def from_focal(
+        width: int, height: int, focal_length: float, pixel_size: float, name: str = 'camera'
+    ) -> CameraModel:
+        """An ideal camera from a lens focal length and a pixel pitch (both in metres)."""
+        f = focal_length / pixel_size
+        K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0, 0, 1]])
+        return CameraModel(width, height, K, np.zeros(5), name)
+
+    def project(self, points: ArrayLike) -> Array:
+        """Project camera-frame points (N, 3) to pixels (N, 2), with distortion."""
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        xn = p[:, :2] / p[:, 2:3]
+        if self.has_distortion:
+            xn = self._distort(xn)
+        return np.asarray(xn * [self.fx, self.fy] + [self.cx, self.cy], dtype=np.float64)
+
+    def rays(self, pixels: ArrayLike) -> Array:
+        """Unit-z rays (N, 3) in the camera frame through pixels (N, 2), undoing distortion."""
+        px = np.atleast_2d(np.asarray(pixels, dtype=np.float64))
+        xn = (px - [self.cx, self.cy]) / [self.fx, self.fy]
+        if self.has_distortion:
+            xn = self.undistort_normalized(xn)
+        return np.column_stack([xn, np.ones(len(xn))])
+
+    def undistort_pixels(self, pixels: ArrayLike) -> Array:
+        """Pixels of an ideal (distortion-free) camera with the same K."""
+        if not self.has_distortion:
+            return np.atleast_2d(np.asarray(pixels, dtype=np.float64)).copy()
+        r = self.rays(pixels)
+        return np.asarray(r[:, :2] * [self.fx, self.fy] + [self.cx, self.cy], dtype=np.float64)
+
+    def _distort(self, xn: Array) -> Array:
+        k1, k2, p1, p2, k3 = self.dist[:5]
+        x, y = xn[:, 0], xn[:, 1]
+        r2 = x * x + y * y
+        radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        return np.column_stack([xd, yd])
+
+    def undistort_normalized(self, xd: Array, iterations: int = 20) -> Array:
+        """Invert the distortion model by fixed-point iteration (as cv2.undistortPoints)."""
+        k1, k2, p1, p2, k3 = self.dist[:5]
+        x = xd.copy()
+        for _ in range(iterations):
+            u, v = x[:, 0], x[:, 1]
+            r2 = u * u + v * v
+            radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2
+            dx = 2 * p1 * u * v + p2 * (r2 + 2 * u * u)
+            dy = p1 * (r2 + 2 * v * v) + 2 * p2 * u * v
+            x = np.column_stack([(xd[:, 0] - dx) / radial, (xd[:, 1] - dy) / radial])
+        return x
+
+    # -- YAML (ROS camera_calibration layout) -----------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            'camera_name': self.name,
+            'image_width': self.width,
+            'image_height': self.height,
+            'camera_matrix': {'rows': 3, 'cols': 3, 'data': self.K.reshape(-1).tolist()},
+            'distortion_model': 'plumb_bob',
+            'distortion_coefficients': {'rows': 1, 'cols': 5, 'data': self.dist.tolist()},
+        }
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> CameraModel:
+        """Read the ROS camera_calibration layout.
+
+        Raises:
+            CalibrationError: with the missing or malformed key.
+        """
+        try:
+            K = np.array(data['camera_matrix']['data'], dtype=np.float64).reshape(3, 3)
+            dist = np.array(
+                data.get('distortion_coefficients', {}).get('data', [0.0] * 5), dtype=np.float64
+            )
+            return CameraModel(
+                int(data['image_width']),
+                int(data['image_height']),
+                K,
+                dist,
+                str(data.get('camera_name', 'camera')),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationError(f'malformed camera calibration: {exc!r}') from exc
+
+    def save(self, path: Path) -> None:
+        path.write_text(yaml.safe_dump(self.to_dict(), sort_keys=False))
+
+    @staticmethod
+    def load(path: Path | str) -> CameraModel:
+        try:
+            data = yaml.safe_load(Path(path).read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise CalibrationError(f'cannot read camera calibration {path}: {exc}') from exc
+        if not isinstance(data, dict):
+            raise CalibrationError(f'{path}: expected a mapping, got {type(data).__name__}')
+        return CameraModel.from_dict(data)
+
+
+# Table I defaults.
+DYNAMIC_FOCAL_LENGTH = 25e-3
+DYNAMIC_PIXEL_SIZE = 5e-6  # 1/4-inch CMOS, 3.2 mm / 640 px
+OVERHEAD_FOCAL_LENGTH = 12e-3
+OVERHEAD_PIXEL_SIZE = 10e-6  # assumed 1/2-inch CCD, 6.4 mm / 640 px
+
+
+def dynamic_camera(name: str = 'cam1') -> CameraModel:
+    """The paper's dynamic camera: 640x480, 1/4-inch CMOS, 25 mm lens."""
+    return CameraModel.from_focal(640, 480, DYNAMIC_FOCAL_LENGTH, DYNAMIC_PIXEL_SIZE, name)
+
+
+def overhead_camera(name: str = 'overhead') -> CameraModel:
+    """The paper's static overhead camera: 640x480 CCD, 12 mm lens."""
+    return CameraModel.from_focal(640, 480, OVERHEAD_FOCAL_LENGTH, OVERHEAD_PIXEL_SIZE, name)

@@ -1,0 +1,93 @@
+"""One entry point for every node's console script: start, spin, stop, one-line start-up errors.
+
+::
+
+    def main(args: list[str] | None = None) -> int:
+        return run_node('fusion', FusionNode, args, on_stop=FusionNode.flush)
+
+A node that cannot start (a bad parameter, a missing or malformed configuration file) prints
+``<name>: error: <reason>`` on stderr and the process exits with status 1, without a traceback.
+SIGINT and SIGTERM stop the spin; ``on_stop`` then runs while the node still has its publishers
+(fusion answers its open demands, the recorder closes its bag), and the context ends.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from collections.abc import Callable
+from types import FrameType
+from typing import TypeVar
+
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from activesurv_common.errors import CommonError
+
+N = TypeVar('N', bound=Node)
+
+STARTUP_ERRORS: tuple[type[Exception], ...] = (
+    ParameterException,
+    CommonError,
+    ValueError,
+    OSError,
+    KeyError,
+)
+"""What a node's constructor raises for bad parameters or configuration files."""
+
+
+def one_line(exc: BaseException) -> str:
+    return ' '.join(str(exc).split()) or type(exc).__name__
+
+
+def run_node(
+    name: str,
+    factory: Callable[[], N],
+    args: list[str] | None = None,
+    on_stop: Callable[[N], None] | None = None,
+    errors: tuple[type[Exception], ...] = (),
+) -> int:
+    """Construct ``factory()`` and spin it until SIGINT/SIGTERM or an external shutdown.
+
+    Args:
+        name: the executable's name, for error lines.
+        factory: builds the node (usually its class).
+        args: command-line arguments (rclpy reads ``--ros-args``).
+        on_stop: runs after the spin, before the node is destroyed.
+        errors: start-up errors of the node's package, in addition to :data:`STARTUP_ERRORS`.
+
+    Returns:
+        The exit status: 0 after a clean stop, 1 if the node could not start.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = factory()
+    except (*STARTUP_ERRORS, *errors) as exc:
+        print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stopping = False
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        while rclpy.ok() and not stopping:
+            executor.spin_once(timeout_sec=0.1)
+    except ExternalShutdownException:
+        pass
+    finally:
+        if on_stop is not None:
+            on_stop(node)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,51 @@
+"""Every QoS profile of the graph, named by what it carries.
+
+* Sensor streams are best effort (``qos_profile_sensor_data``), as real drivers publish them.
+* Blackboard state (horizon, plan, stage goals) is reliable + transient-local, depth 1
+  ("latched"): a node that joins late gets the current value.
+* Per-demand events are reliable; on the blackboard they are transient-local with the last 50,
+  so a restarted fusion node re-collects the requests and observations of recent demands.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+
+
+def _profile(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+# Camera streams, joint states, heartbeats: best effort, as real drivers publish.
+SENSOR = qos_profile_sensor_data
+# Triggered frames the imager must not miss: reliable (a best-effort subscriber still matches).
+SENSOR_RELIABLE = _profile(5)
+# Joint states and object states as published: reliable, so recorders get every sample;
+# best-effort (SENSOR) subscribers match them too.
+STATE = _profile(20)
+# Blackboard state: the newest, kept for late joiners.
+LATCHED = _profile(1, latched=True)
+GOAL = LATCHED
+# Per-demand events (capture requests, observations) as subscribed by the imagers.
+EVENTS = _profile(50)
+# Per-demand events on the blackboard (publishers keep the last 50 for late joiners).
+EVENTS_LATCHED = _profile(50, latched=True)
+# Results (estimates, fused poses): a late recorder or evaluator still gets the last ones.
+RESULTS = _profile(20, latched=True)
+# rclpy's time source subscribes to /clock best effort, depth 1; a reliable publisher matches.
+CLOCK = _profile(1)
+CLOCK_SUBSCRIBER = _profile(1, reliable=False)
+DIAGNOSTICS = _profile(10)
+# Small status topics of the tools (recorder status).
+STATUS = _profile(10)

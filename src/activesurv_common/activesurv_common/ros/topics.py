@@ -1,0 +1,50 @@
+"""Every topic name of the graph, in one place (relative names unless global by nature).
+
+Camera topics are prefixed by the camera id (``cam1/image_raw``); the functions build them.
+"""
+
+from __future__ import annotations
+
+# Ground truth and time (simulator)
+OBJECT_STATE = 'object_state'
+CLOCK = '/clock'
+# Prediction
+OVERHEAD_FIX = 'overhead/fix'
+OVERHEAD_TRACK = 'overhead/track'
+DEMAND_HORIZON = 'demand_horizon'
+# Dispatch
+DISPATCH_PLAN = 'dispatch_plan'
+DISPATCH_MARKERS = 'dispatch_markers'
+CAPTURE_REQUEST = 'capture_request'
+# Imaging and fusion
+MARKER_OBSERVATIONS = 'marker_observations'
+TARGET_ESTIMATE = 'target_estimate'
+TARGET_POSE = 'target_pose'
+# Infrastructure
+DIAGNOSTICS = '/diagnostics'
+RECORDER_STATUS = '/activesurv/recorder_status'
+RUN_INFO = '/activesurv/run_info'
+
+OVERHEAD = 'overhead'
+"""The overhead camera's id (its topics are ``overhead/image_raw`` etc.)."""
+
+
+def image(camera_id: str) -> str:
+    return f'{camera_id}/image_raw'
+
+
+def camera_info(camera_id: str) -> str:
+    return f'{camera_id}/camera_info'
+
+
+def heartbeat(camera_id: str) -> str:
+    """The imager's liveness beat (std_msgs/Header, frame_id = camera id, 10 Hz)."""
+    return f'{camera_id}/imager/heartbeat'
+
+
+def joint_states(camera_id: str) -> str:
+    return f'{camera_id}/stage/joint_states'
+
+
+def goal(camera_id: str) -> str:
+    return f'{camera_id}/stage/goal'

@@ -1,0 +1,223 @@
+"""The dispatcher's session core: horizon, stage states and imager beats in; goals, capture
+requests and missed demands out, on a ``tick(now)`` clock.
+
+It owns the planner (assignment, preassignment, replanning), the motion controller and the
+capture scheduler, and the liveness rule: a camera whose stage state is older than
+``camera_timeout``, or whose imager has beaten before and then fell silent for as long, is taken
+out of dispatching (its frozen slots are refilled from spare cameras) and put back when both
+are heard again. The ``dispatcher`` node and lockstep mode drive this same object, so the two
+modes cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_common.sensor_model import SensorModel
+from activesurv_dispatch.motion import Capture, CaptureScheduler, MotionController, StageCommand
+from activesurv_dispatch.planner import Demand, DispatchPlanner, Plan
+from activesurv_dispatch.sensors import Setup
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DispatcherConfig:
+    """Dispatching settings (``config/dispatcher.yaml``).
+
+    Attributes:
+        k: fusion subset size.
+        rho: replanning box, in prediction sigmas (paper Section II-D).
+        capture_lead: s before a demand instant to send its capture request.
+        settle_time: s a camera must be still before the instant.
+        camera_timeout: s without stage state or imager heartbeat before a camera is dropped.
+    """
+
+    k: int = 3
+    rho: float = 1.0
+    capture_lead: float = 0.3
+    settle_time: float = 0.1
+    camera_timeout: float = 0.5
+
+
+@dataclass
+class Outputs:
+    """What one input or tick produced, for the caller to publish.
+
+    Attributes:
+        goals: stage commands to send.
+        captures: capture requests to send now (their cameras hold still until the instant).
+        missed: demands whose instant passed with no assignment (requests with no cameras).
+        serviced: captures whose instant has passed (lockstep acquires their frames now).
+        plan: the newest plan, when planning ran.
+        events: (level, text) lines for the log: 'info' or 'warning'.
+    """
+
+    goals: list[StageCommand] = field(default_factory=list)
+    captures: list[Capture] = field(default_factory=list)
+    missed: list[Capture] = field(default_factory=list)
+    serviced: list[Capture] = field(default_factory=list)
+    plan: Plan | None = None
+    events: list[tuple[str, str]] = field(default_factory=list)
+
+    def merge(self, other: Outputs) -> None:
+        self.goals += other.goals
+        self.captures += other.captures
+        self.missed += other.missed
+        self.serviced += other.serviced
+        self.plan = other.plan or self.plan
+        self.events += other.events
+
+
+class Dispatcher:
+    """One dispatching session over a rolling horizon."""
+
+    def __init__(self, setup: Setup, model: SensorModel, config: DispatcherConfig) -> None:
+        self.setup = setup
+        self.config = config
+        self.planner = DispatchPlanner(setup, model, config.k, config.rho, config.settle_time)
+        self.motion = MotionController(setup)
+        self.scheduler = CaptureScheduler(config.capture_lead)
+        self.joints: dict[str, Array] = {}
+        self.joint_stamp: dict[str, float] = {}
+        self.beat_stamp: dict[str, float] = {}
+        self.down: dict[str, str] = {}  # camera -> why it is out of dispatching
+        self.demands: dict[int, Demand] = {}
+        self.horizon: list[Demand] = []
+        self.plan: Plan | None = None
+        self.plan_ms: list[float] = []
+        self.counts: Counter[str] = Counter()
+
+    # -- inputs ----------------------------------------------------------------------------
+    def on_joints(self, camera_id: str, q: ArrayLike, now: float) -> Outputs:
+        """A stage state of ``camera_id`` (positions in its joint order) heard at ``now``."""
+        v = np.asarray(q, dtype=np.float64).reshape(-1)
+        names = self.setup.sensor(camera_id).joint_names
+        if v.shape != (len(names),) or not np.all(np.isfinite(v)):
+            self.counts['bad_joint_states'] += 1
+            return Outputs()
+        self.joints[camera_id] = v
+        self.joint_stamp[camera_id] = now
+        return self._check_alive(now) if camera_id in self.down else Outputs()
+
+    def on_beat(self, camera_id: str, now: float) -> None:
+        """The imager of ``camera_id`` beat at ``now``."""
+        self.beat_stamp[camera_id] = now
+
+    def set_horizon(self, demands: Sequence[Demand], now: float, dropped: int = 0) -> Outputs:
+        """A new rolling horizon; ``dropped`` malformed demands were left out of it."""
+        self.counts['bad_demands'] += dropped
+        for d in demands:
+            self.demands[d.index] = d
+        self.horizon = list(demands)
+        return self._replan(now)
+
+    # -- the work --------------------------------------------------------------------------
+    def _replan(self, now: float) -> Outputs:
+        if not self.joints:
+            return Outputs()
+        t0 = time.perf_counter()
+        plan = self.planner.plan(now, self.horizon, self.joints)
+        self.plan_ms = [*self.plan_ms[-199:], 1e3 * (time.perf_counter() - t0)]
+        self.plan = plan
+        out = Outputs(plan=plan)
+        if plan.replanned:
+            out.events.append(
+                ('info', f'replanned demand {plan.first_index}: the prediction moved')
+            )
+        out.goals = self.motion.commands(plan, self.demands)
+        self.counts['goals'] += len(out.goals)
+        return out
+
+    def _check_alive(self, now: float) -> Outputs:
+        """Take cameras whose stage or imager fell silent out of dispatching; re-admit them."""
+        timeout = self.config.camera_timeout
+        out = Outputs()
+        changed = False
+        for cid, stamp in self.joint_stamp.items():
+            why = ''
+            if now - stamp > timeout:
+                why = f'no stage state for {timeout:g} s'
+            elif cid in self.beat_stamp and now - self.beat_stamp[cid] > timeout:
+                why = f'no imager heartbeat for {timeout:g} s'
+            if why and cid not in self.down:
+                self.down[cid] = why
+                self.planner.exclude(cid)
+                self.counts['cameras_lost'] += 1
+                out.events.append(
+                    ('warning', f'{cid}: {why}; dispatching without it (t={now:.2f} s)')
+                )
+                changed = True
+            elif not why and cid in self.down:
+                del self.down[cid]
+                self.planner.include(cid)
+                self.motion.forget(cid)
+                self.counts['cameras_back'] += 1
+                out.events.append(('info', f'{cid} is back: dispatching it again (t={now:.2f} s)'))
+                changed = True
+        if changed:
+            out.merge(self._replan(now))
+        return out
+
+    def tick(self, now: float, serviced_until: float | None = None) -> Outputs:
+        """Liveness, due capture requests, missed demands and serviced demands at ``now``.
+
+        Args:
+            now: the current time.
+            serviced_until: report captures whose instant falls before this time as serviced
+                (default ``now``); lockstep looks ahead to the end of its step.
+        """
+        out = self._check_alive(now)
+        if self.plan is not None:
+            capture = self.scheduler.due(now, self.plan, self.demands)
+            if capture is not None:
+                self.planner.close(capture.demand.index)
+                self.motion.holding.update(capture.cameras)
+                self.counts['captures'] += 1
+                out.captures.append(capture)
+                out.events.append(
+                    (
+                        'info',
+                        f'capture demand {capture.demand.index} at {capture.demand.time:.2f} s '
+                        f'with {list(capture.cameras)}',
+                    )
+                )
+        for missed in self.scheduler.missed(now, self.demands):
+            self.planner.serviced(missed.demand.index)
+            self.counts['missed_demands'] += 1
+            out.missed.append(missed)
+            out.events.append(
+                (
+                    'warning',
+                    f'demand {missed.demand.index} passed with no camera assigned; '
+                    'reported as a failure',
+                )
+            )
+        until = now if serviced_until is None else serviced_until
+        for done in self.scheduler.newly_serviced(until):
+            self.planner.serviced(done.demand.index)
+            self.motion.holding.difference_update(done.cameras)
+            out.serviced.append(done)
+            out.merge(self._replan(now))
+        return out
+
+    def status(self) -> dict[str, object]:
+        """Diagnostics values."""
+        ms = self.plan_ms or [math.nan]
+        values: dict[str, object] = dict(self.counts)
+        values.update(
+            plan_ms_median=f'{float(np.median(ms)):.2f}',
+            replans=self.planner.replans,
+            cameras_with_state=sorted(self.joints),
+            cameras_down=sorted(self.planner.excluded),
+            why_down=dict(self.down),
+            serving=self.plan.first_index if self.plan else -1,
+        )
+        return values

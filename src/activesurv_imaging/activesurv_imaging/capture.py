@@ -1,0 +1,192 @@
+"""The imager's session core: which frame and which camera pose answer each capture request.
+
+A capture request names a demand instant ``t_j``. The answer uses the frame stamped within
+``frame_tolerance`` of ``t_j`` and the camera pose at the frame's stamp, from the stage joint
+states interpolated there. It waits (returns nothing yet) while the frame, the camera_info or a
+stage state at or after the frame's stamp is still to come, and gives up with an explicit
+failure ``frame_timeout`` seconds after ``t_j``: every request gets exactly one observation.
+The ``imager`` node feeds it from topics; lockstep mode feeds it directly, so both modes measure
+the same way.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform
+from activesurv_common.mount import CameraMount
+from activesurv_common.sensor_model import SensorModel
+from activesurv_common.timeseries import FrameBuffer, TimeSeries
+from activesurv_imaging.errors import VisionErrors
+from activesurv_imaging.observation import (
+    Observation,
+    ObservationStatus,
+    failed,
+    observe_marker,
+    perturb,
+)
+
+F = TypeVar('F')
+Gray = NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class ImagerConfig:
+    """How one imager measures.
+
+    Attributes:
+        camera_id: the camera it serves.
+        marker_radius: radius of the side marker (m).
+        frame_tolerance: largest |frame stamp - demand instant| accepted (s).
+        frame_timeout: s after the demand instant before it answers with a failure.
+        joint_hold: s a stage state may be held beyond its stamp.
+        inject_bias_x: fault injection: m added to the world x of every estimate.
+        inject_noise: fault injection: extra position noise (m, std).
+        inject_flip: fault injection: take the wrong one of the two circle poses.
+    """
+
+    camera_id: str
+    marker_radius: float = 0.0125
+    frame_tolerance: float = 0.005
+    frame_timeout: float = 1.0
+    joint_hold: float = 0.2
+    inject_bias_x: float = 0.0
+    inject_noise: float = 0.0
+    inject_flip: bool = False
+
+
+@dataclass(frozen=True)
+class Request:
+    """A capture request this camera must answer."""
+
+    index: int
+    demand_time: float
+    prior_normal: NDArray[np.float64] | None
+
+
+class CaptureCore(Generic[F]):
+    """Frames of type ``F`` (an image message, or an array) in; observations out.
+
+    Args:
+        config: measurement settings.
+        mount: the camera's stage mount, or its fixed ``T_world_camera``.
+        model: the sensor model (covariance of each observation).
+        to_gray: turns a frame into an 8-bit grey image; may raise an imaging error.
+        camera: intrinsics, if known now (else :meth:`set_camera` when camera_info arrives).
+    """
+
+    def __init__(
+        self,
+        config: ImagerConfig,
+        mount: CameraMount | Transform,
+        model: SensorModel,
+        to_gray: Callable[[F], Gray],
+        camera: CameraModel | None = None,
+    ) -> None:
+        self.config = config
+        self.mount = mount
+        self.model = model
+        self.camera = camera
+        self._to_gray = to_gray
+        self.frames: FrameBuffer[F] = FrameBuffer(60)
+        self.joint_names = mount.joint_names if isinstance(mount, CameraMount) else ()
+        self.joints = TimeSeries(max(len(self.joint_names), 1))
+        self.pending: list[Request] = []
+        # A stable seed per camera: the injected noise repeats from run to run.
+        self._rng = np.random.default_rng(zlib.crc32(config.camera_id.encode()))
+
+    # -- inputs --------------------------------------------------------------------------
+    def set_camera(self, camera: CameraModel) -> None:
+        self.camera = camera
+
+    def request(self, index: int, demand_time: float, prior_normal: ArrayLike | None) -> None:
+        prior = None if prior_normal is None else np.asarray(prior_normal, dtype=np.float64)
+        if prior is not None and not np.all(np.isfinite(prior)):
+            prior = None
+        self.pending.append(Request(index, demand_time, prior))
+
+    def add_frame(self, stamp: float, frame: F) -> None:
+        self.frames.add(stamp, frame)
+
+    def add_joints(self, stamp: float, q: ArrayLike) -> bool:
+        """Add a stage state; False (ignored) if it is not finite or has the wrong size."""
+        return self.joints.add(stamp, q)
+
+    # -- the work ------------------------------------------------------------------------
+    def camera_pose(self, t: float) -> Transform | None:
+        """``T_world_camera`` at ``t``, or None if no stage state covers ``t``."""
+        if not isinstance(self.mount, CameraMount):
+            return self.mount
+        q = self.joints.at(t, self.config.joint_hold)
+        return None if q is None else self.mount.pose_from_joints(q)
+
+    def poll(self, now: float) -> list[Observation]:
+        """Observations of the requests that can be answered at ``now``; the rest wait."""
+        done: list[Observation] = []
+        keep: list[Request] = []
+        for r in self.pending:
+            obs = self._answer(r, now)
+            if obs is None:
+                keep.append(r)
+            else:
+                done.append(obs)
+        self.pending = keep
+        return done
+
+    def _fail(
+        self, r: Request, stamp: float, status: ObservationStatus, why: str, T: Transform | None
+    ) -> Observation:
+        return failed(self.config.camera_id, r.index, stamp, status, why, T)
+
+    def _answer(self, r: Request, now: float) -> Observation | None:
+        c = self.config
+        timed_out = now > r.demand_time + c.frame_timeout
+        hit = self.frames.closest(r.demand_time, c.frame_tolerance)
+        if hit is None:
+            if not timed_out:
+                return None
+            why = (
+                f'no frame within {c.frame_tolerance:g} s of the demand instant '
+                f'{r.demand_time:.3f} s'
+            )
+            return self._fail(r, r.demand_time, ObservationStatus.NO_IMAGE, why, None)
+        stamp, frame = hit
+        if self.camera is None:
+            if not timed_out:
+                return None
+            why = 'no camera_info received: intrinsics unknown'
+            return self._fail(r, stamp, ObservationStatus.NO_IMAGE, why, None)
+        latest = self.joints.latest_time
+        staged = isinstance(self.mount, CameraMount)
+        if staged and not timed_out and (latest is None or latest < stamp):
+            return None  # wait for a stage state at or after the frame: interpolate, not hold
+        T = self.camera_pose(stamp)
+        if T is None:
+            if timed_out or (latest is not None and latest > stamp + 1.0):
+                why = f'no stage state for {self.joint_names} at {stamp:.3f} s'
+                return self._fail(r, stamp, ObservationStatus.NO_CAMERA_POSE, why, None)
+            return None
+        try:
+            gray = self._to_gray(frame)
+        except VisionErrors as exc:
+            return self._fail(r, stamp, ObservationStatus.REJECTED, str(exc), T)
+        obs = observe_marker(
+            gray,
+            self.camera,
+            T,
+            c.marker_radius,
+            self.model,
+            c.camera_id,
+            r.index,
+            stamp,
+            r.prior_normal,
+            c.inject_flip,
+        )
+        return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)

@@ -1,0 +1,135 @@
+"""The ``overhead_locator`` node: the top marker's world position in every overhead image.
+
+Subscribes: <camera_id>/image_raw, <camera_id>/camera_info (the static overhead camera).
+Publishes: overhead/fix (geometry_msgs/PointStamped in ``world``, stamped with the image's
+    exposure time; one per image in which the marker was found), /diagnostics.
+Parameters: see ``config/overhead_locator.yaml``. The camera's pose comes from
+``extrinsics_file`` (``activesurv_calibrate extrinsics``) or ``camera_pose``.
+
+This is the vision half of the paper's Prediction Module; the ``predictor`` node tracks the
+fixes with the Kalman filter.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+from geometry_msgs.msg import PointStamped
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image
+
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_imaging.errors import VisionErrors
+from activesurv_imaging.overhead import load_extrinsics, overhead_fix
+
+
+def _seven_numbers(v: Any) -> str | None:
+    return None if len(v) == 7 else 'camera_pose needs 7 numbers: x, y, z, qx, qy, qz, qw'
+
+
+PARAMS = (
+    Param('camera_id', topics.OVERHEAD, 'overhead camera id (topic prefix)'),
+    Param('extrinsics_file', '', 'YAML from activesurv_calibrate extrinsics; empty: camera_pose'),
+    Param(
+        'camera_pose',
+        [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0],
+        'overhead x, y, z, qx, qy, qz, qw in world, if no extrinsics_file',
+        check=_seven_numbers,
+    ),
+    Param('marker_height', 0.08, 'z of the top marker plane (m)'),
+    Param('marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
+    Param('frame_id', 'world', 'frame of the fixes'),
+)
+
+
+class OverheadLocatorNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('overhead_locator', **kwargs)
+        declare(self, PARAMS)
+        v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
+        self.camera_id = str(v['camera_id'])
+        pose = [float(x) for x in v['camera_pose']]
+        self.T_world_camera = (
+            load_extrinsics(str(v['extrinsics_file']))
+            if v['extrinsics_file']
+            else Transform.from_rt(matrix_from_quaternion(pose[3:]), pose[:3])
+        )
+        self.marker_height = float(v['marker_height'])
+        self.marker_radius = float(v['marker_radius'])
+        self.frame_id = str(v['frame_id'])
+        self.camera: CameraModel | None = None
+        self.counts: Counter[str] = Counter()
+        self.last_reason = ''
+        self._fix_pub = self.create_publisher(PointStamped, topics.OVERHEAD_FIX, qos.STATE)
+        self._diag_pub = self.create_publisher(
+            diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
+        )
+        self.create_subscription(Image, topics.image(self.camera_id), self._on_image, qos.SENSOR)
+        self.create_subscription(
+            CameraInfo, topics.camera_info(self.camera_id), self._on_info, qos.SENSOR
+        )
+        self.create_timer(1.0, self._publish_diagnostics)
+
+    def _on_info(self, msg: CameraInfo) -> None:
+        if self.camera is not None:
+            return
+        try:
+            self.camera = model_from_camera_info(msg, self.camera_id)
+        except VisionErrors as exc:
+            self.counts['bad_camera_info'] += 1
+            self.get_logger().error(f'bad camera_info: {exc}', throttle_duration_sec=5)
+
+    def _on_image(self, msg: Image) -> None:
+        self.counts['frames'] += 1
+        if self.camera is None:
+            self.last_reason = 'waiting for camera_info'
+            return
+        try:
+            fix = overhead_fix(
+                image_to_gray(msg),
+                self.camera,
+                self.T_world_camera,
+                self.marker_height,
+                self.marker_radius,
+            )
+        except VisionErrors as exc:
+            self.counts['bad_images'] += 1
+            self.last_reason = f'bad image: {exc}'
+            return
+        if fix.xy is None:
+            self.counts['no_fix'] += 1
+            self.last_reason = fix.reason
+            return
+        self.counts['fixes'] += 1
+        pt = PointStamped()
+        pt.header.stamp = msg.header.stamp
+        pt.header.frame_id = self.frame_id
+        pt.point.x, pt.point.y = (float(c) for c in fix.xy)
+        pt.point.z = self.marker_height
+        self._fix_pub.publish(pt)
+
+    def _publish_diagnostics(self) -> None:
+        values: dict[str, Any] = dict(self.counts)
+        values['last_no_fix_reason'] = self.last_reason
+        s = diagnostics.status(
+            'activesurv/overhead_locator',
+            self.camera_id,
+            f'{self.counts["fixes"]} fixes from {self.counts["frames"]} frames',
+            values,
+            diagnostics.OK if self.counts['fixes'] else diagnostics.WARN,
+        )
+        self._diag_pub.publish(diagnostics.array(self.get_clock().now().to_msg(), s))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('overhead_locator', OverheadLocatorNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,363 @@
+"""Render what a camera sees: flat plates carrying a circular marker or a checkerboard.
+
+This is the simulated camera's core and the source of the "real pixels" the pipeline runs on in
+simulation. A scene is a list of :class:`Plate` (a rectangle in 3-D with a pattern drawn on it)
+in front of a uniform background. Rendering casts a ray through every pixel centre; pixels on an
+edge (a neighbour differs) are re-rendered with ``supersample x supersample`` rays, which gives
+anti-aliased edges at a fraction of the cost of supersampling the whole frame. Then the image is
+blurred (lens), photon shot noise and read noise are added, and it is quantised to 8 bits.
+Only each plate's projected bounding box is ray-cast (the rest is background). Everything random
+comes from a seeded ``numpy.random.Generator``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform, as_vector3, unit
+from activesurv_sim.errors import RenderError
+
+Array = NDArray[np.float64]
+
+BLACK_PLATE = 25.0  # matte black anodised aluminium (Table I), in 8-bit grey levels
+WHITE_MARKER = 230.0
+BACKGROUND = 70.0
+
+
+class Pattern(Enum):
+    PLAIN = 'plain'
+    DISC = 'disc'
+    CHECKER = 'checker'
+
+
+@dataclass(frozen=True)
+class Plate:
+    """A flat rectangle in the world.
+
+    Attributes:
+        center: plate centre (3,), also the centre of its disc or board.
+        normal: unit normal of the visible face (3,).
+        x_axis: in-plane direction of the plate's first side (made orthogonal to ``normal``).
+        half_size: half extents (along x_axis, along normal x x_axis), metres.
+        pattern: what is drawn on it.
+        radius: disc radius (DISC), metres.
+        squares: (columns, rows) of the board (CHECKER).
+        square_size: side of one square (CHECKER), metres.
+        plate_level / mark_level: grey levels of the plate and of the marker or white squares.
+    """
+
+    center: Array
+    normal: Array
+    x_axis: Array
+    half_size: tuple[float, float]
+    pattern: Pattern = Pattern.PLAIN
+    radius: float = 0.0
+    squares: tuple[int, int] = (0, 0)
+    square_size: float = 0.0
+    plate_level: float = BLACK_PLATE
+    mark_level: float = WHITE_MARKER
+
+    @staticmethod
+    def disc(
+        center: ArrayLike,
+        normal: ArrayLike,
+        radius: float,
+        plate_half_size: float = 0.06,
+        x_axis: ArrayLike = (1.0, 0.0, 0.0),
+    ) -> Plate:
+        """A matte black square plate with a white disc at its centre (the paper's target)."""
+        n = unit(normal, 'normal')
+        x = _orthogonal_axis(n, x_axis)
+        if not radius > 0.0 or radius >= plate_half_size:
+            raise RenderError(f'disc radius {radius} must be > 0 and fit on the plate')
+        return Plate(
+            as_vector3(center, 'center'),
+            n,
+            x,
+            (plate_half_size, plate_half_size),
+            Pattern.DISC,
+            radius=radius,
+        )
+
+    @staticmethod
+    def checkerboard(
+        center: ArrayLike,
+        normal: ArrayLike,
+        x_axis: ArrayLike,
+        squares: tuple[int, int],
+        square_size: float,
+        margin: float = 0.01,
+    ) -> Plate:
+        """A calibration board of ``squares`` = (columns, rows) squares, centred on ``center``."""
+        n = unit(normal, 'normal')
+        x = _orthogonal_axis(n, x_axis)
+        half = (squares[0] * square_size / 2 + margin, squares[1] * square_size / 2 + margin)
+        return Plate(
+            as_vector3(center, 'center'),
+            n,
+            x,
+            half,
+            Pattern.CHECKER,
+            squares=squares,
+            square_size=square_size,
+            plate_level=WHITE_MARKER,
+            mark_level=BLACK_PLATE,
+        )
+
+    @property
+    def y_axis(self) -> Array:
+        return np.cross(self.normal, self.x_axis)
+
+
+def _orthogonal_axis(n: Array, x_axis: ArrayLike) -> Array:
+    x = as_vector3(x_axis, 'x_axis')
+    x = x - (x @ n) * n
+    if np.linalg.norm(x) < 1e-9:  # x_axis parallel to the normal: pick any in-plane direction
+        x = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+    return unit(x)
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Image formation after the optics.
+
+    Attributes:
+        blur_sigma: Gaussian blur of the lens/defocus, pixels (0: none).
+        electrons_per_level: photo-electrons per grey level (shot noise; 0: none).
+        read_noise: read noise std in grey levels.
+        supersample: edge pixels are rendered with supersample^2 rays.
+    """
+
+    blur_sigma: float = 0.8
+    electrons_per_level: float = 40.0
+    read_noise: float = 1.0
+    supersample: int = 8
+
+
+@dataclass(frozen=True)
+class Scene:
+    plates: tuple[Plate, ...]
+    background: float = BACKGROUND
+    ambient_gradient: tuple[float, float] = field(default=(0.0, 0.0))  # grey levels across x, y
+
+
+def _shade(
+    scene: Scene,
+    origin: Array,
+    dirs: Array,
+    only: int | None = None,
+    best_t: Array | None = None,
+    level: Array | None = None,
+    label: NDArray[np.int64] | None = None,
+    rotation: Array | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Grey level and a label (which plate and which part of its pattern) for each ray.
+
+    With ``only``, just that plate is tested, against (and updating) the given depth, level and
+    label buffers. With ``rotation`` (world from camera), ``dirs`` are in the camera frame: the
+    rotation is folded into each plate's 3x3 axis matrix instead of applied to every ray.
+    """
+    n_rays = dirs.shape[0]
+    best_t = np.full(n_rays, np.inf) if best_t is None else best_t
+    level = np.full(n_rays, scene.background) if level is None else level
+    label = np.zeros(n_rays, dtype=np.int64) if label is None else label
+    for p_idx, plate in enumerate(scene.plates):
+        if only is not None and p_idx != only:
+            continue
+        # One 3x3 product gives, per ray, its component along the normal and the two in-plane
+        # axes; the hit's plate coordinates are then a0 + t * d (no n x 3 temporaries).
+        y_axis = plate.y_axis
+        axes = np.column_stack([plate.normal, plate.x_axis, y_axis])
+        comps = dirs @ (axes if rotation is None else rotation.T @ axes)
+        denom = comps[:, 0]
+        rel0 = origin - plate.center
+        with np.errstate(divide='ignore', invalid='ignore'):
+            t = -(rel0 @ plate.normal) / denom
+        ok = (t > 0.0) & (t < best_t) & (np.abs(denom) > 1e-12) & np.isfinite(t)
+        idx = np.flatnonzero(ok)
+        if idx.size == 0:
+            continue
+        t_ok = t[idx]
+        a = (rel0 @ plate.x_axis) + t_ok * comps[idx, 1]
+        b = (rel0 @ y_axis) + t_ok * comps[idx, 2]
+        inside = (np.abs(a) <= plate.half_size[0]) & (np.abs(b) <= plate.half_size[1])
+        idx, a, b = idx[inside], a[inside], b[inside]
+        if idx.size == 0:
+            continue
+        best_t[idx] = t[idx]
+        vals = np.full(idx.size, plate.plate_level)
+        lab = np.full(idx.size, 2 * p_idx + 1)
+        if plate.pattern is Pattern.DISC:
+            on = a * a + b * b <= plate.radius * plate.radius
+            vals[on] = plate.mark_level
+            lab[on] = 2 * p_idx + 2
+        elif plate.pattern is Pattern.CHECKER:
+            cols, rows = plate.squares
+            s = plate.square_size
+            ia = np.floor(a / s + cols / 2).astype(np.int64)
+            ib = np.floor(b / s + rows / 2).astype(np.int64)
+            on_board = (ia >= 0) & (ia < cols) & (ib >= 0) & (ib < rows)
+            dark = on_board & ((ia + ib) % 2 == 0)
+            vals[dark] = plate.mark_level
+            lab[dark] = 2 * p_idx + 2
+        level[idx] = vals
+        label[idx] = lab
+    return level, label
+
+
+class Renderer:
+    """Renders frames for one camera; keeps the camera-frame ray of every pixel between frames.
+
+    Only pixels inside the projected bounding box of some plate are ray-cast; the rest of the
+    image is the uniform background, exactly, so this changes no pixel.
+    """
+
+    def __init__(self, camera: CameraModel) -> None:
+        self.camera = camera
+        h, w = camera.height, camera.width
+        uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+        self._rays = camera.rays(np.column_stack([uu.ravel(), vv.ravel()])).reshape(h, w, 3)
+
+    def _plate_box(self, plate: Plate, T: Transform) -> tuple[int, int, int, int] | None:
+        """Pixel bounding box (u0, u1, v0, v1) of a plate, or None when it is not in front."""
+        h0, h1 = plate.half_size
+        corners = np.array(
+            [
+                plate.center + sa * h0 * plate.x_axis + sb * h1 * plate.y_axis
+                for sa in (-1, 1)
+                for sb in (-1, 1)
+            ]
+        )
+        p = (corners - T.t) @ T.R  # camera frame
+        if np.any(p[:, 2] <= 1e-6):
+            return 0, self.camera.width, 0, self.camera.height  # straddles the camera: all
+        px = self.camera.project(p)
+        u0, v0 = np.floor(px.min(axis=0)).astype(int) - 3
+        u1, v1 = np.ceil(px.max(axis=0)).astype(int) + 4
+        u0, u1 = max(u0, 0), min(u1, self.camera.width)
+        v0, v1 = max(v0, 0), min(v1, self.camera.height)
+        return (u0, u1, v0, v1) if u0 < u1 and v0 < v1 else None
+
+    def render(
+        self,
+        T_world_camera: Transform,
+        scene: Scene,
+        noise: SensorNoise | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> NDArray[np.uint8]:
+        """See :func:`render`."""
+        noise = SensorNoise() if noise is None else noise
+        if noise.supersample < 1:
+            raise RenderError('supersample must be >= 1')
+        cam = self.camera
+        h, w = cam.height, cam.width
+        origin, R = T_world_camera.t, T_world_camera.R
+        img: Array = np.full((h, w), scene.background, dtype=np.float64)
+        lab = np.zeros((h, w), dtype=np.int64)
+        boxes = [
+            (i, b)
+            for i, b in enumerate(self._plate_box(pl, T_world_camera) for pl in scene.plates)
+            if b
+        ]
+        if boxes:
+            u0 = min(b[0] for _, b in boxes)
+            u1 = max(b[1] for _, b in boxes)
+            v0 = min(b[2] for _, b in boxes)
+            v1 = max(b[3] for _, b in boxes)
+            depth = np.full((h, w), np.inf)
+            for i, (bu0, bu1, bv0, bv1) in boxes:
+                # Each plate is tested only inside its own box; a depth buffer resolves overlaps.
+                dirs = self._rays[bv0:bv1, bu0:bu1].reshape(-1, 3)
+                shape = (bv1 - bv0, bu1 - bu0)
+                d_sub = depth[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                l_sub = img[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                k_sub = lab[bv0:bv1, bu0:bu1].reshape(-1).copy()
+                _shade(scene, origin, dirs, i, d_sub, l_sub, k_sub, rotation=R)
+                depth[bv0:bv1, bu0:bu1] = d_sub.reshape(shape)
+                img[bv0:bv1, bu0:bu1] = l_sub.reshape(shape)
+                lab[bv0:bv1, bu0:bu1] = k_sub.reshape(shape)
+
+            # Edge pixels: any 8-neighbour with another label. Re-render with s x s rays.
+            s = noise.supersample
+            if s > 1:
+                sub_lab = lab[v0:v1, u0:u1].astype(np.float32)
+                kernel = np.ones((3, 3), np.uint8)
+                edge = cv2.dilate(sub_lab, kernel) != cv2.erode(sub_lab, kernel)
+                ev, eu = np.nonzero(edge)
+                if ev.size:
+                    ev, eu = ev + v0, eu + u0
+                    offs = (np.arange(s) + 0.5) / s - 0.5
+                    ou, ov = np.meshgrid(offs, offs)
+                    sub = np.column_stack(
+                        [
+                            (eu[:, None] + ou.ravel()[None, :]).ravel(),
+                            (ev[:, None] + ov.ravel()[None, :]).ravel(),
+                        ]
+                    )
+                    sub_level, _ = _shade(scene, origin, cam.rays(sub), rotation=R)
+                    img[ev, eu] = sub_level.reshape(-1, s * s).mean(axis=1)
+
+        gx, gy = scene.ambient_gradient
+        if gx or gy:
+            uu, vv = np.meshgrid(np.arange(w) / w - 0.5, np.arange(h) / h - 0.5)
+            img = img + gx * uu + gy * vv
+        if noise.blur_sigma > 0.0:
+            img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
+        rng = np.random.default_rng() if rng is None else rng
+        # Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise together,
+        # in float32: a grey level needs no more.
+        if noise.electrons_per_level > 0.0 or noise.read_noise > 0.0:
+            img32 = img.astype(np.float32)
+            var = np.full_like(img32, noise.read_noise**2)
+            if noise.electrons_per_level > 0.0:
+                var += np.clip(img32, 0.0, None) * np.float32(1.0 / noise.electrons_per_level)
+            img32 += np.sqrt(var) * rng.standard_normal(img32.shape, dtype=np.float32)
+            return np.clip(np.rint(img32), 0, 255).astype(np.uint8)
+        return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def render(
+    camera: CameraModel,
+    T_world_camera: Transform,
+    scene: Scene,
+    noise: SensorNoise | None = None,
+    rng: np.random.Generator | None = None,
+) -> NDArray[np.uint8]:
+    """Render an 8-bit grey image of ``scene`` seen by ``camera`` at ``T_world_camera``.
+
+    Args:
+        camera: intrinsics (distortion is honoured).
+        T_world_camera: pose of the camera optical frame in the world.
+        scene: plates and background.
+        noise: image formation; ``None`` for the defaults, ``SensorNoise(0, 0, 0)`` for an ideal
+            noise-free (but still anti-aliased and quantised) image.
+        rng: random generator for the noise (seed it for reproducible images).
+
+    Returns:
+        (height, width) uint8 image. For many frames of one camera keep a :class:`Renderer`.
+    """
+    return Renderer(camera).render(T_world_camera, scene, noise, rng)
+
+
+def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> Transform:
+    """Pose of an optical frame at ``eye`` looking at ``target`` (z forward, y down, x right).
+
+    Raises:
+        RenderError: if ``eye`` and ``target`` coincide or the view is along ``up``.
+    """
+    e, t = as_vector3(eye, 'eye'), as_vector3(target, 'target')
+    if np.linalg.norm(t - e) < 1e-12:
+        raise RenderError('eye and target coincide')
+    z = unit(t - e)
+    x = np.cross(z, as_vector3(up, 'up'))
+    if np.linalg.norm(x) < 1e-9:
+        raise RenderError('viewing direction is parallel to up; pick another up vector')
+    x = unit(x)
+    y = np.cross(z, x)
+    return Transform(np.column_stack([x, y, z]), e)

@@ -1,0 +1,192 @@
+"""The ``sim_camera`` node: a simulated camera that renders real pixels of the object.
+
+Subscribes:
+    object_state (activesurv_interfaces/ObjectState): the object's ground truth (xy table).
+    <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
+    capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
+        the demand instant (like a hardware trigger armed ahead of time).
+Publishes:
+    <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
+Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead_camera
+from activesurv_common.errors import CommonError
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.conversions import (
+    MOUNT_PARAMETERS,
+    camera_info_from_model,
+    declare_mount_parameters,
+    gray_to_image,
+    joint_vector,
+    mount_from_parameters,
+    object_state_vector,
+    sec_to_time,
+    time_to_sec,
+)
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_interfaces.msg import CaptureRequest, ObjectState
+from activesurv_sim.errors import SimError
+from activesurv_sim.render import SensorNoise
+from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
+
+PARAMS = (
+    Param('camera_id', 'cam1', 'camera id (topic prefix)'),
+    Param(
+        'camera_type',
+        'dynamic',
+        'default optics: dynamic (25 mm) or overhead (12 mm)',
+        choices=('dynamic', 'overhead'),
+    ),
+    Param('intrinsics_file', '', 'camera YAML (camera_calibration layout); overrides the type'),
+    Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
+    Param('trigger_delay', 0.05, 'min s from a demand instant to its frame', minimum=0.0),
+    Param('state_hold', 0.2, 's a state may be extrapolated', minimum=0.0),
+    Param('seed', 0, 'image noise seed'),
+    Param('side_marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
+    Param('top_marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
+    Param('plate_half_size', 0.03, 'half side of the marker plates (m)', above=0.0),
+    Param('blur_sigma', 0.8, 'lens blur (px)', minimum=0.0),
+    Param('electrons_per_level', 40.0, 'shot noise scale', above=0.0),
+    Param('read_noise', 1.0, 'read noise (grey levels)', minimum=0.0),
+    Param('supersample', 8, 'edge supersampling per axis', minimum=1, maximum=16),
+    Param('inject_frozen', False, 'fault: keep sending the first frame'),
+)
+
+
+class SimCameraNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('sim_camera', **kwargs)
+        declare(self, PARAMS)
+        declare_mount_parameters(self)
+
+        p = {name: self.get_parameter(name).value for name in MOUNT_PARAMETERS}
+        self.camera_id = str(self.get_parameter('camera_id').value)
+        intrinsics = str(self.get_parameter('intrinsics_file').value)
+        if intrinsics:
+            model = CameraModel.load(intrinsics)
+        elif self.get_parameter('camera_type').value == 'overhead':
+            model = overhead_camera(self.camera_id)
+        else:
+            model = dynamic_camera(self.camera_id)
+        g = self.get_parameter
+        self.sim = SimulatedCamera(
+            model,
+            mount_from_parameters(self.camera_id, p),
+            ObjectGeometry(
+                float(g('side_marker_radius').value),
+                float(g('top_marker_radius').value),
+                float(g('plate_half_size').value),
+            ),
+            SensorNoise(
+                float(g('blur_sigma').value),
+                float(g('electrons_per_level').value),
+                float(g('read_noise').value),
+                int(g('supersample').value),
+            ),
+            int(g('seed').value),
+        )
+        self.frame_id = f'{self.camera_id}_optical'
+        self._image_pub = self.create_publisher(
+            Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
+        )
+        self._info_pub = self.create_publisher(
+            CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
+        )
+        self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
+        if self.sim.joint_names:
+            self.create_subscription(
+                JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
+            )
+        self.create_subscription(
+            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+        )
+        self._pending: set[float] = set()
+        self.create_timer(0.02, self._on_tick)
+        rate = float(g('frame_rate').value)
+        self._last_streamed = -math.inf
+        if rate > 0.0:
+            self.create_timer(1.0 / rate, self._on_stream)
+        self.frames_published = 0
+        self._frozen: Any = None
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_object(self, msg: ObjectState) -> None:
+        if not self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg)):
+            self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
+
+    def _on_joints(self, msg: JointState) -> None:
+        q = joint_vector(msg, self.sim.joint_names)
+        if q is None or not self.sim.joints.add(time_to_sec(msg.header.stamp), q):
+            self.get_logger().warning(
+                f'ignored joint state without finite {self.sim.joint_names}',
+                throttle_duration_sec=5,
+            )
+
+    def _on_request(self, msg: CaptureRequest) -> None:
+        if self.camera_id in msg.camera_ids:
+            self._pending.add(time_to_sec(msg.demand_instant))
+
+    def _publish(self, t: float) -> None:
+        hold = float(self.get_parameter('state_hold').value)
+        try:
+            gray = self.sim.render_at(t, hold)
+        except (SimError, CommonError) as exc:
+            self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
+            return
+        stamp = sec_to_time(t)
+        if bool(self.get_parameter('inject_frozen').value):
+            if self._frozen is None:
+                self._frozen = gray
+            gray = self._frozen  # a stuck camera: the same pixels, fresh stamps
+        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+        self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
+        self.frames_published += 1
+
+    def _covered(self, t: float) -> bool:
+        """Object and stage states are known at or after ``t`` (interpolation, no holding)."""
+        latest = [self.sim.objects.latest_time]
+        if self.sim.joint_names:
+            latest.append(self.sim.joints.latest_time)
+        return all(x is not None and x >= t for x in latest)
+
+    def _on_tick(self) -> None:
+        # A triggered frame is rendered once the states around its instant have arrived, so that
+        # a loaded machine delays the frame but never renders it with a stale pose; after
+        # trigger_delay + state_hold it is rendered with the nearest states (or not at all).
+        now = self._now()
+        delay = float(self.get_parameter('trigger_delay').value)
+        hold = float(self.get_parameter('state_hold').value)
+        due = [
+            t
+            for t in self._pending
+            if now >= t + delay and (self._covered(t) or now >= t + delay + hold)
+        ]
+        for t in sorted(due):
+            self._pending.discard(t)
+            self._publish(t)
+
+    def _on_stream(self) -> None:
+        t = self.sim.objects.latest_time
+        if t is not None and t > self._last_streamed:
+            self._last_streamed = t
+            self._publish(t)
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('sim_camera', SimCameraNode, args, errors=(SimError,))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

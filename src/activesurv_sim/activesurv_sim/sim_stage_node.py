@@ -1,0 +1,122 @@
+"""The ``sim_stage`` node: a simulated camera stage with the bridge's topics and behaviour.
+
+Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal).
+Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate``,
+    /diagnostics.
+The axes follow the kinematics core on the node's clock (simulated time in experiments) with
+the velocity and acceleration caps of the motion class (static, medium, fast). Goals outside the
+soft limits, or any goal for a static camera, are refused with a logged reason.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros.conversions import sec_to_time
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_interfaces.msg import StageGoal
+from activesurv_stages.config import MOTION_CLASSES, motion_class
+from activesurv_stages.conversions import goal_items, joint_state
+from activesurv_stages.errors import ConfigError, LimitError, StageError
+from activesurv_stages.kinematics import AxisLimits, AxisSimulator
+
+PARAMS = (
+    Param('camera_id', 'cam1', 'topic prefix'),
+    Param('joints', ['cam1_x', 'cam1_yaw'], 'joint names'),
+    Param('kinds', ['linear', 'rotary'], 'linear or rotary, per joint'),
+    Param('min', [-0.15, -1.5], 'soft limits (m, rad)'),
+    Param('max', [0.15, 1.5], 'soft limits (m, rad)'),
+    Param('initial', [0.0, 0.0], 'start positions (m, rad)'),
+    Param('motion_class', 'fast', 'camera speeds', choices=tuple(sorted(MOTION_CLASSES))),
+    Param('publish_rate', 25.0, 'JointState rate (Hz)', minimum=0.5, maximum=1000.0),
+)
+
+
+class SimStageNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('sim_stage', **kwargs)
+        declare(self, PARAMS)
+
+        g = self.get_parameter
+        self.camera_id = str(g('camera_id').value)
+        self.joints = [str(j) for j in g('joints').value]
+        kinds = [str(k) for k in g('kinds').value]
+        lo, hi, init = (list(g(n).value) for n in ('min', 'max', 'initial'))
+        if not (len(self.joints) == len(kinds) == len(lo) == len(hi) == len(init)):
+            raise ConfigError('joints, kinds, min, max and initial need the same length')
+        self.motion = motion_class(str(g('motion_class').value))
+        now = self._now()
+        self.axes: dict[str, AxisSimulator] = {}
+        for j, k, a, b, p in zip(self.joints, kinds, lo, hi, init, strict=True):
+            v, acc = self.motion.limits(k)
+            # A static camera still needs limits for the model; it refuses every goal.
+            limits = AxisLimits(float(a), float(b), v or 1e-9, acc or 1e-9)
+            self.axes[j] = AxisSimulator(limits, float(p), now)
+        self.counts: Counter[str] = Counter()
+        self.last_refusal = ''
+
+        self._pub = self.create_publisher(
+            JointState, topics.joint_states(self.camera_id), qos.STATE
+        )
+        self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
+        self.create_timer(1.0 / float(g('publish_rate').value), self._publish)
+        self.create_timer(1.0, self._publish_diagnostics)
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _refuse(self, text: str) -> None:
+        self.counts['refused'] += 1
+        self.last_refusal = text
+        self.get_logger().warning(text, throttle_duration_sec=2)
+
+    def _on_goal(self, msg: StageGoal) -> None:
+        now = self._now()
+        for joint, position, velocity in goal_items(msg):
+            if joint not in self.axes:
+                self._refuse(f'goal for unknown joint {joint!r} ignored (have {self.joints})')
+                continue
+            if not self.motion.moves:
+                self._refuse(f'{joint}: the static system does not move; goal ignored')
+                continue
+            try:
+                self.axes[joint].command(now, position, velocity)
+                self.counts['accepted'] += 1
+            except LimitError as exc:
+                self._refuse(f'{joint}: goal refused: {exc}')
+
+    def _publish(self) -> None:
+        now = self._now()
+        states = [self.axes[j].state(now) for j in self.joints]
+        self._pub.publish(
+            joint_state(
+                self.joints, [s[0] for s in states], [s[1] for s in states], sec_to_time(now)
+            )
+        )
+
+    def _publish_diagnostics(self) -> None:
+        values: dict[str, Any] = {**self.counts, 'last_refusal': self.last_refusal}
+        s = diagnostics.status(
+            f'activesurv/sim_stage/{self.camera_id}',
+            self.camera_id,
+            f'{self.motion.name} system, {self.counts["accepted"]} goals accepted',
+            values,
+            diagnostics.WARN if self.counts['refused'] else diagnostics.OK,
+        )
+        self._diag.publish(diagnostics.array(sec_to_time(self._now()), s))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('sim_stage', SimStageNode, args, errors=(StageError,))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

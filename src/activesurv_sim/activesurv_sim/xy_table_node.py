@@ -1,0 +1,140 @@
+"""The ``xy_table`` node: moves the object along its preprogrammed path; optionally owns /clock.
+
+Publishes:
+    object_state (activesurv_interfaces/ObjectState): ground truth (top and side markers), for
+        the simulated cameras and for evaluation; at ``publish_rate`` (simulated Hz).
+    /clock (rosgraph_msgs/Clock) when ``publish_clock`` is true: simulated time starts at 0 and
+        runs ``real_time_factor`` times as fast as the wall clock (slower when below 1).
+Parameters: path_type (parabola, line, csv), path_points, csv_file, speed, acceleration,
+    start_time (s of simulated time before the object starts), top_height, side_offset,
+    side_normal, publish_rate, publish_clock, real_time_factor, frame_id.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.conversions import sec_to_time
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
+from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.xytable import ObjectModel, XYTable, named_path
+from activesurv_stages.errors import ConfigError, StageError
+
+PARAMS = (
+    Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv')),
+    Param(
+        'path_points',
+        [0.17, 0.06, 0.25, 0.12, 0.33, 0.06],
+        'line: x0, y0, x1, y1; parabola: start, apex, end (m)',
+    ),
+    Param('csv_file', '', 't,x,y CSV for path_type csv'),
+    Param('speed', 0.02, 'path speed (m/s)', above=0.0),
+    Param('acceleration', 0.02, 'path acceleration (m/s^2)', above=0.0),
+    Param('start_time', 1.0, 's before the object starts', minimum=0.0),
+    Param('top_height', 0.08, 'top marker plane z (m)'),
+    Param('side_offset', [0.0, -0.03, -0.03], 'side marker centre minus top marker centre (m)'),
+    Param('side_normal', [0.0, -1.0, 0.0], 'side marker normal (world)'),
+    Param('publish_rate', 50.0, 'object_state rate (Hz)', above=0.0),
+    Param('publish_clock', True, 'own the simulated /clock'),
+    Param('real_time_factor', 1.0, 'simulated s per wall s', above=0.0),
+    Param('frame_id', 'world', 'frame of object_state'),
+    Param(
+        'wait_for_subscribers',
+        0,
+        'hold simulated time at 0 until object_state has this many subscribers',
+        minimum=0,
+    ),
+    Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
+)
+
+
+class XYTableNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('xy_table', **kwargs)
+        declare(self, PARAMS)
+
+        g = self.get_parameter
+        path = named_path(
+            str(g('path_type').value),
+            list(g('path_points').value),
+            float(g('speed').value),
+            float(g('acceleration').value),
+            str(g('csv_file').value),
+        )
+        off = [float(v) for v in g('side_offset').value]
+        nrm = [float(v) for v in g('side_normal').value]
+        if len(off) != 3 or len(nrm) != 3:
+            raise ConfigError('side_offset and side_normal need 3 numbers each')
+        model = ObjectModel(
+            float(g('top_height').value), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2])
+        )
+        self.table = XYTable(path, float(g('start_time').value), model)
+        self.publish_clock = bool(g('publish_clock').value)
+        self.rtf = float(g('real_time_factor').value)
+        self.frame_id = str(g('frame_id').value)
+        self._wall0: float | None = None  # simulated time starts when everyone listens
+        self._created = time.monotonic()
+        self._wait_for = int(g('wait_for_subscribers').value)
+        self._wait_timeout = float(g('wait_timeout').value)
+        self._clock_pub = (
+            self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
+        )
+        self._pub = self.create_publisher(ObjectStateMsg, topics.OBJECT_STATE, qos.STATE)
+        rate = float(g('publish_rate').value)
+        # With its own clock the node steps on the wall clock; otherwise on its node clock.
+        self.create_timer(
+            1.0 / (rate * self.rtf) if self.publish_clock else 1.0 / rate, self._on_tick
+        )
+        self.get_logger().info(
+            f'path of {self.table.path.duration:.1f} s from t={self.table.start_time:.1f} s'
+            + (f', owning /clock at {self.rtf:g}x real time' if self.publish_clock else '')
+        )
+
+    def sim_time(self) -> float:
+        if self.publish_clock:
+            if self._wall0 is None:
+                return 0.0
+            return (time.monotonic() - self._wall0) * self.rtf
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _ready(self) -> bool:
+        if self._wall0 is not None:
+            return True
+        listeners = self._pub.get_subscription_count()
+        waited = time.monotonic() - self._created
+        if listeners >= self._wait_for or waited > self._wait_timeout:
+            if listeners < self._wait_for:
+                self.get_logger().warning(
+                    f'starting with {listeners} of {self._wait_for} object_state subscribers '
+                    f'after {waited:.0f} s'
+                )
+            self._wall0 = time.monotonic()
+            self.get_logger().info('simulated time starts')
+            return True
+        return False
+
+    def _on_tick(self) -> None:
+        if self.publish_clock and not self._ready():
+            if self._clock_pub is not None:
+                self._clock_pub.publish(Clock(clock=sec_to_time(0.0)))
+            return
+        t = self.sim_time()
+        stamp = sec_to_time(t)
+        if self._clock_pub is not None:
+            self._clock_pub.publish(Clock(clock=stamp))
+        self._pub.publish(object_state_msg(self.table.state(t), stamp, self.frame_id))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('xy_table', XYTableNode, args, errors=(StageError,))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,90 @@
+"""Node test: rendered overhead images -> overhead_locator -> predictor -> a DemandHorizon."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from rclpy.parameter import Parameter
+
+from activesurv_common.ros import qos, topics
+from activesurv_imaging.overhead_locator_node import OverheadLocatorNode
+from activesurv_prediction.predictor_node import PredictorNode
+from activesurv_sim.sim_camera_node import SimCameraNode
+
+OVERHEAD_POSE = [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0]  # looking straight down
+TOP_HEIGHT = 0.08
+
+
+def test_images_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., bool]) -> None:
+    from activesurv_interfaces.msg import DemandHorizon, ObjectState
+
+    t0 = time.time()
+    demands = [t0 + 6.0, t0 + 8.0, t0 + 10.0]
+    cam = SimCameraNode(
+        parameter_overrides=[
+            Parameter('camera_id', value='overhead'),
+            Parameter('camera_type', value='overhead'),
+            Parameter('mount.static_pose', value=OVERHEAD_POSE),
+            Parameter('frame_rate', value=15.0),
+            Parameter('supersample', value=4),
+        ]
+    )
+    locator = OverheadLocatorNode(
+        parameter_overrides=[
+            Parameter('camera_pose', value=OVERHEAD_POSE),
+            Parameter('marker_height', value=TOP_HEIGHT),
+        ]
+    )
+    pred = PredictorNode(
+        parameter_overrides=[
+            Parameter('demand_times', value=demands),
+            Parameter('marker_height', value=TOP_HEIGHT),
+            Parameter('confirm_fixes', value=5),
+            Parameter('horizon', value=2),
+        ]
+    )
+    peer = rclpy_context.create_node('predictor_test_peer')
+    horizons: list[DemandHorizon] = []
+    peer.create_subscription(DemandHorizon, topics.DEMAND_HORIZON, horizons.append, qos.LATCHED)
+    obj_pub = peer.create_publisher(ObjectState, 'object_state', qos.SENSOR)
+
+    def truth(t: float) -> np.ndarray:
+        return np.array([0.15 + 0.015 * (t - t0), 0.08 + 0.005 * (t - t0)])
+
+    def step() -> bool:
+        now = peer.get_clock().now()
+        xy = truth(now.nanoseconds * 1e-9)
+        o = ObjectState(in_workspace=True)
+        o.header.stamp = now.to_msg()
+        o.top_marker.x, o.top_marker.y, o.top_marker.z = xy[0], xy[1], TOP_HEIGHT
+        o.side_marker.x, o.side_marker.y, o.side_marker.z = xy[0], xy[1] - 0.03, TOP_HEIGHT - 0.03
+        o.side_normal.y = -1.0
+        obj_pub.publish(o)
+        return (
+            bool(horizons)
+            and horizons[-1].track_state == DemandHorizon.TRACK_CONFIRMED
+            and time.time() > t0 + 3.0
+        )
+
+    try:
+        assert spin_until([cam, locator, pred, peer], step, timeout=40.0), (
+            f'horizons: {len(horizons)}, last state '
+            f'{horizons[-1].track_state if horizons else None}'
+        )
+        h = horizons[-1]
+        assert [d.index for d in h.demands] == [0, 1]
+        d0 = h.demands[0]
+        t_j = d0.demand_instant.sec + 1e-9 * d0.demand_instant.nanosec
+        assert abs(t_j - demands[0]) < 1e-6
+        expected = np.r_[truth(t_j), TOP_HEIGHT] + [0.0, -0.03, -0.03]
+        got = np.array([d0.pose.pose.position.x, d0.pose.pose.position.y, d0.pose.pose.position.z])
+        assert np.linalg.norm(got - expected) < 0.01  # a few seconds ahead, few fixes so far
+        cov = np.array(d0.pose.covariance).reshape(6, 6)
+        assert cov[0, 0] > 0.0
+        assert (d0.normal.x, d0.normal.y, d0.normal.z) == (0.0, -1.0, 0.0)
+    finally:
+        for n in (cam, locator, pred, peer):
+            n.destroy_node()

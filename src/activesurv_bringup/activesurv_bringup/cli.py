@@ -5,7 +5,8 @@
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
-        [--rtf X] [--image-rate HZ] [--compose] [--hosts {single,netns}]
+        [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
+        [--hosts {single,netns}]
         [--dds-profile {large-images,PATH.xml}]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
@@ -25,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from activesurv_bringup.errors import BringupError, ConfigError
-from activesurv_bringup.options import RunOptions, new_output_dir, timestamped_dir
+from activesurv_bringup.options import PROCESSES, RunOptions, new_output_dir, timestamped_dir
 
 SYSTEMS = ('static', 'medium', 'fast')
 DDS_PROFILE_HELP = (
@@ -70,7 +71,14 @@ def _build_parser() -> argparse.ArgumentParser:
         default='single',
         help='netns: each camera on its own "host" (network namespace, needs root), over UDP',
     )
-    exp.add_argument('--rtf', type=float, default=0.5, help='simulated s per wall s (graph)')
+    exp.add_argument('--rtf', type=float, default=1.0, help='simulated s per wall s (graph)')
+    exp.add_argument(
+        '--processes',
+        choices=PROCESSES,
+        default='containers',
+        help='graph mode: nodes grouped into a few container processes per host (default), '
+        'or one process per node',
+    )
     exp.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
@@ -98,7 +106,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument('--seed', type=int, default=1)
     demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
-    demo.add_argument('--rtf', type=float, default=0.5)
+    demo.add_argument('--rtf', type=float, default=1.0)
+    demo.add_argument('--processes', choices=PROCESSES, default='containers')
     demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
 
     bag = sub.add_parser('bag', help='bag tools (reindex a bag whose recorder was killed)')
@@ -131,6 +140,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         faults=tuple(parse_fault(f) for f in getattr(args, 'fault', [])),
         kills=tuple(parse_kill(k) for k in getattr(args, 'kill', [])),
         compose=bool(getattr(args, 'compose', False)),
+        processes=str(getattr(args, 'processes', 'containers')),
         hosts=str(getattr(args, 'hosts', 'single')),
         dds_profile=dds_profile_path(profile) if profile else None,
     )

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiment import Experiment
 from activesurv_bringup.faults import Fault, FaultKind, Kill, imager_injection
-from activesurv_bringup.launcher import Launcher, NodeSpec
+from activesurv_bringup.launcher import Launcher, NodeSpec, container
 from activesurv_bringup.options import RunOptions, scoped_environ
 
 if TYPE_CHECKING:
@@ -225,6 +225,47 @@ def graph_specs(
     return specs
 
 
+WORLD_MODULES = ('activesurv_sim.sim_camera_node', 'activesurv_sim.sim_stage_node')
+ALONE_MODULES = ('activesurv_bringup.recorder_node', 'activesurv_sim.xy_table_node')
+
+
+def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> list[NodeSpec]:
+    """Node specs grouped into container processes, one group per role and host.
+
+    Per host: ``world`` (the simulated cameras and stages: what a real lab's hardware drivers
+    would be) and ``surveillance`` (overhead locator, predictor, dispatcher, fusion, imagers);
+    on a camera host of ``--hosts netns`` the camera's stage, camera and imager share one
+    container. The recorder (its disk writes must not stall anyone), the xy table (it starts
+    last and owns /clock) and the nodes named in ``alone`` (nodes to kill and restart, load
+    generators) run as processes of their own. Start order is kept: the first member of a
+    group decides where the group starts.
+    """
+    groups: dict[tuple[str, str], list[NodeSpec]] = {}
+    order: list[NodeSpec | tuple[str, str]] = []
+    for s in specs:
+        if s.members or s.module in ALONE_MODULES or s.name in alone:
+            order.append(s)
+            continue
+        if s.host and s.host != 'core':
+            key = (s.host, s.host)
+        else:
+            key = ('world' if s.module in WORLD_MODULES else 'surveillance', s.host)
+        if key not in groups:
+            groups[key] = []
+            order.append(key)
+        groups[key].append(s)
+    out: list[NodeSpec] = []
+    for item in order:
+        if isinstance(item, NodeSpec):
+            out.append(item)
+        elif len(groups[item]) == 1:
+            out.append(groups[item][0])
+        else:
+            name, host = item
+            out.append(container(name if not host or host == 'core' else host, groups[item], host))
+    return out
+
+
 class _Monitor:
     """Watches /clock and the estimates from inside the orchestrator."""
 
@@ -347,6 +388,9 @@ def run_graph(
     for k in opts.kills:
         if k.node not in by_name:
             raise ConfigError(f'cannot kill {k.node}: it is not running in this run')
+    if opts.processes == 'containers' and not opts.compose:
+        alone = [k.node for k in opts.kills] + [s.name for s in opts.extra]
+        specs = group_processes(specs[:-1], alone) + specs[-1:]
     with scoped_environ(opts.environment()):
         return _run(exp, out_dir, bag, specs, by_name, opts, progress, hosts, rclpy)
 
@@ -372,7 +416,7 @@ def _run(
     owns_rclpy = not rclpy.ok()
     if owns_rclpy:
         rclpy.init()
-    monitor = _Monitor([s.name for s in specs[:-1]])
+    monitor = _Monitor([m.name for s in specs[:-1] for m in (s.members or (s,))])
     launcher: Launcher | Composition
     if opts.compose:
         from activesurv_bringup.compose import Composition
@@ -406,6 +450,7 @@ def _run(
             launcher.start_node(specs[-1])
         else:
             launcher.add(specs[-1:])
+        cpu0, wall0 = _cpu(launcher), time.monotonic()
         end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
         wall_limit = time.monotonic() + (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0
         shown = -1
@@ -432,6 +477,7 @@ def _run(
                 break
             monitor.spin(0.25)
         monitor.spin(0.5)  # the recorder gets the last messages
+        _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
     finally:
         monitor.close()
         # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
@@ -439,3 +485,27 @@ def _run(
         if owns_rclpy:
             rclpy.try_shutdown()
     return bag
+
+
+def _cpu(launcher: Launcher | Composition) -> dict[str, float]:
+    """CPU seconds so far of each node process, and of this (orchestrating) process."""
+    own = os.times()
+    out = {'orchestrator': own.user + own.system}
+    if isinstance(launcher, Launcher):
+        out.update(launcher.cpu_seconds())
+    return out
+
+
+def _write_cpu(path: Path, before: dict[str, float], after: dict[str, float], wall: float) -> None:
+    """CPU use of the run from the start of simulated time to its end (``cpu.json``).
+
+    ``cores`` is CPU seconds of all processes over wall seconds: 1.0 is one core kept busy.
+    A node restarted mid-run counts from its restart.
+    """
+    used = {k: round(after[k] - before.get(k, 0.0), 3) for k in sorted(after)}
+    doc = {
+        'wall_seconds': round(wall, 3),
+        'cpu_seconds': used,
+        'cores': round(sum(used.values()) / max(wall, 1e-9), 3),
+    }
+    path.write_text(json.dumps(doc, indent=2) + '\n')

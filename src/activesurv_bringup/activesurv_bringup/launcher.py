@@ -36,6 +36,8 @@ class NodeSpec:
         remappings: topic remappings ``from -> to``.
         required: a required node that dies fails the whole run.
         host: the host (network namespace) it runs on; '' for this one.
+        members: for a container (``module`` is :data:`CONTAINER_MODULE`), the nodes it runs
+            in its one process; ``parameters`` and ``remappings`` are then unused.
     """
 
     name: str
@@ -45,6 +47,7 @@ class NodeSpec:
     remappings: Mapping[str, str] = field(default_factory=dict)
     required: bool = True
     host: str = ''
+    members: tuple[NodeSpec, ...] = ()
 
     @property
     def fqn(self) -> str:
@@ -52,8 +55,46 @@ class NodeSpec:
         return f'/{ns}/{self.name}' if ns else f'/{self.name}'
 
 
+def process_cpu_seconds(pid: int) -> float | None:
+    """User + system CPU seconds of a process (Linux ``/proc``), or None if it is gone."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    # Fields 14 and 15 of stat (utime, stime), counted after the ')' that ends the name.
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+CONTAINER_MODULE = 'activesurv_bringup.container'
+
+
+def container(name: str, members: Sequence[NodeSpec], host: str = '') -> NodeSpec:
+    """A container process running ``members`` (see :mod:`activesurv_bringup.container`)."""
+    return NodeSpec(name, CONTAINER_MODULE, host=host, members=tuple(members))
+
+
+def members_document(members: Sequence[NodeSpec]) -> dict[str, Any]:
+    """The YAML document a container reads its members from."""
+    return {
+        'members': [
+            {
+                'name': m.name,
+                'module': m.module,
+                'namespace': m.namespace,
+                'parameters': dict(m.parameters),
+                'remappings': dict(m.remappings),
+            }
+            for m in members
+        ]
+    }
+
+
 def node_command(spec: NodeSpec, params_file: Path | None) -> list[str]:
     """The command line that runs ``spec`` (what ``ros2 run`` would execute, plus remaps)."""
+    if spec.members:
+        if params_file is None:
+            raise NodeDiedError(f'container {spec.name} needs its members file')
+        return [sys.executable, '-m', CONTAINER_MODULE, str(params_file)]
     cmd = [sys.executable, '-m', spec.module, '--ros-args', '-r', f'__node:={spec.name}']
     if spec.namespace:
         cmd += ['-r', f'__ns:=/{spec.namespace.strip("/")}']
@@ -65,7 +106,12 @@ def node_command(spec: NodeSpec, params_file: Path | None) -> list[str]:
 
 
 def write_params_file(spec: NodeSpec, directory: Path) -> Path | None:
-    """Write the node's parameters as a ROS params YAML keyed by its fully qualified name."""
+    """Write the node's parameters as a ROS params YAML keyed by its fully qualified name (for a
+    container: its members file)."""
+    if spec.members:
+        path = directory / f'{spec.name}.members.yaml'
+        path.write_text(yaml.safe_dump(members_document(spec.members)))
+        return path
     if not spec.parameters:
         return None
     path = directory / f'{spec.fqn.strip("/").replace("/", "__")}.params.yaml'
@@ -188,6 +234,14 @@ class Launcher:
         for fqn, proc in reversed(list(self.processes.items())):
             codes[fqn] = proc.stop()
         return codes
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """CPU seconds (user + system) each running node process has used so far."""
+        return {
+            fqn: t
+            for fqn, proc in self.processes.items()
+            if proc.alive() and (t := process_cpu_seconds(proc.process.pid)) is not None
+        }
 
     def wait_alive(self, seconds: float) -> None:
         """Watch the nodes for ``seconds`` (fails fast if one dies while starting)."""

@@ -20,6 +20,7 @@ from activesurv_bringup.faults import Fault, Kill
 from activesurv_bringup.launcher import NodeSpec
 
 HOSTS = ('single', 'netns')
+PROCESSES = ('containers', 'nodes')
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,8 @@ class RunOptions:
         faults: camera faults to inject.
         kills: nodes to SIGKILL (and restart) at simulated instants.
         compose: every node in this process on one executor.
+        processes: ``containers`` (nodes grouped into a few processes per host, the default)
+            or ``nodes`` (one process per node, as separate ``ros2 run`` calls would).
         hosts: ``single``, or ``netns`` (each camera on a host of its own).
         dds_profile: a Fast DDS XML profile for every node (a path), or None.
         startup_timeout: wall seconds for the graph to come up.
@@ -44,6 +47,7 @@ class RunOptions:
     faults: tuple[Fault, ...] = ()
     kills: tuple[Kill, ...] = ()
     compose: bool = False
+    processes: str = 'containers'
     hosts: str = 'single'
     dds_profile: Path | None = None
     startup_timeout: float = 60.0
@@ -55,6 +59,8 @@ class RunOptions:
             raise ConfigError(f'--rtf must be a finite number > 0, got {self.rtf}')
         if not (math.isfinite(self.image_rate) and self.image_rate >= 0.0):
             raise ConfigError(f'--image-rate must be >= 0, got {self.image_rate}')
+        if self.processes not in PROCESSES:
+            raise ConfigError(f'--processes must be one of {PROCESSES}, got {self.processes!r}')
         if self.hosts not in HOSTS:
             raise ConfigError(f'--hosts must be one of {HOSTS}, got {self.hosts!r}')
         if self.kills and self.compose:

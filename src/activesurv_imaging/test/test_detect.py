@@ -44,7 +44,11 @@ def test_marker_pose_from_rendered_pixels(eye_dir: tuple[float, float, float]) -
     Tinv = T.inverse()  # type: ignore[attr-defined]
     idx, _ = choose_pose(poses, Tinv.rotate(NORMAL))
     assert np.linalg.norm(poses[idx].center - Tinv.apply(MARKER)) < 0.5e-3
-    assert np.degrees(angle_between(poses[idx].normal, Tinv.rotate(NORMAL))) < 0.5
+    # Head-on, the tilt of a circle is ill-conditioned (the paper's best bearing is 20-40 deg):
+    # over 12 noise seeds its normal error has a median of 0.42-0.48 deg and a max of 0.63 deg
+    # with either anti-aliasing; oblique views stay under 0.01 deg.
+    limit = 1.0 if eye_dir == (0.0, -1.0, 0.0) else 0.05
+    assert np.degrees(angle_between(poses[idx].normal, Tinv.rotate(NORMAL))) < limit
 
 
 def test_no_marker_black_and_saturated_frames() -> None:

@@ -2,7 +2,8 @@
 
 ``python -m activesurv_bringup.container MEMBERS.yaml`` constructs every node listed in the
 file (the same node classes the console scripts run, with their names, namespaces, remappings
-and parameters) and spins them on one single-threaded executor. One Python process per group
+and parameters) and spins them on one executor (rclpy's ``EventsExecutor``, see
+:func:`activesurv_common.ros.node.make_executor`). One Python process per group
 of nodes instead of one per node: the interpreter, the DDS participant and the /clock
 subscription are paid once, not 19 times, and messages between the members stay inside the
 process (Fast DDS's intra-process delivery). Every node stays runnable alone with its console
@@ -84,11 +85,11 @@ def share_clock(nodes: Sequence[Any]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
     from activesurv_bringup.errors import BagError
-    from activesurv_common.ros.node import STARTUP_ERRORS, one_line
+    from activesurv_common.ros.node import STARTUP_ERRORS, make_executor, one_line
     from activesurv_sim.errors import SimError
     from activesurv_stages.errors import StageError
 
@@ -113,7 +114,12 @@ def main(argv: list[str] | None = None) -> int:
             rclpy.try_shutdown()
             return 1
     share_clock(nodes)
-    executor = SingleThreadedExecutor()
+    try:
+        executor = make_executor()
+    except ValueError as exc:
+        print(f'container: error: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     for n in nodes:
         executor.add_node(n)
     stopping = False

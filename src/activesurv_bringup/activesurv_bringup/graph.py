@@ -225,31 +225,36 @@ def graph_specs(
     return specs
 
 
-WORLD_MODULES = ('activesurv_sim.sim_camera_node', 'activesurv_sim.sim_stage_node')
+CAMERA_MODULES = (
+    'activesurv_sim.sim_camera_node',
+    'activesurv_sim.sim_stage_node',
+    'activesurv_imaging.imager_node',
+    'activesurv_stages.stage_bridge_node',
+)
 ALONE_MODULES = ('activesurv_bringup.recorder_node', 'activesurv_sim.xy_table_node')
 
 
 def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> list[NodeSpec]:
-    """Node specs grouped into container processes, one group per role and host.
+    """Node specs grouped into container processes, as a real rig would run them per host.
 
-    Per host: ``world`` (the simulated cameras and stages: what a real lab's hardware drivers
-    would be) and ``surveillance`` (overhead locator, predictor, dispatcher, fusion, imagers);
-    on a camera host of ``--hosts netns`` the camera's stage, camera and imager share one
-    container. The recorder (its disk writes must not stall anyone), the xy table (it starts
-    last and owns /clock) and the nodes named in ``alone`` (nodes to kill and restart, load
-    generators) run as processes of their own. Start order is kept: the first member of a
-    group decides where the group starts.
+    Each dynamic camera's stage, camera and imager share a container ``camN`` (with
+    ``--hosts netns`` that is the camera's host): its frames go to its imager inside the
+    process, and the cameras render and measure in parallel on separate cores. The overhead
+    camera and its locator share ``overhead``; predictor, dispatcher and fusion ``core``.
+    The recorder (its disk writes must not stall anyone), the xy table (it starts last and
+    owns /clock) and the nodes named in ``alone`` (nodes to kill and restart, load
+    generators) run as processes of their own. Start order is kept: a group starts where its
+    first member stood.
     """
-    groups: dict[tuple[str, str], list[NodeSpec]] = {}
-    order: list[NodeSpec | tuple[str, str]] = []
+    groups: dict[str, list[NodeSpec]] = {}
+    order: list[NodeSpec | str] = []
     for s in specs:
         if s.members or s.module in ALONE_MODULES or s.name in alone:
             order.append(s)
             continue
-        if s.host and s.host != 'core':
-            key = (s.host, s.host)
-        else:
-            key = ('world' if s.module in WORLD_MODULES else 'surveillance', s.host)
+        key = s.name.split('_')[0] if s.module in CAMERA_MODULES else 'core'
+        if s.module == 'activesurv_imaging.overhead_locator_node':
+            key = 'overhead'  # with the overhead camera: its frames stay in the process
         if key not in groups:
             groups[key] = []
             order.append(key)
@@ -261,8 +266,7 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
         elif len(groups[item]) == 1:
             out.append(groups[item][0])
         else:
-            name, host = item
-            out.append(container(name if not host or host == 'core' else host, groups[item], host))
+            out.append(container(item, groups[item], groups[item][0].host))
     return out
 
 

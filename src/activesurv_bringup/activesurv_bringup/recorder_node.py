@@ -3,10 +3,13 @@
 Like ``ros2 bag record -a`` (not available from PyPI): topics are discovered as they appear,
 each is subscribed with QoS matching its publishers (reliable only if they all are, transient
 local only if they all are, so latched blackboard topics arrive too), and messages are written
-as received (serialized bytes, no conversion) with the node's clock (simulated time in
-experiments). Streams listed in ``thin_topics`` (default: the overhead camera) are thinned to
-``image_rate`` Hz; every other message is kept (the triggered frames of the dynamic cameras
-must all be there for replay). Message definitions go into the bag (Foxglove and ``ros2 bag``
+as received (serialized bytes, no conversion), stamped with the node's clock: on simulated time,
+the last /clock tick extrapolated by the wall time since at the ticks' rate
+(:class:`~activesurv_common.timeseries.ClockEstimate`), so a message 8 ms after a tick is
+logged 8 ms after it, not at the tick (latencies are read off these times). Streams listed
+in ``thin_topics`` (default: the overhead camera) are thinned to ``image_rate`` Hz; every
+other message is kept (the triggered frames of the dynamic cameras must all be there for
+replay). Message definitions go into the bag (Foxglove and ``ros2 bag``
 read them). The ``run_info`` parameter (a JSON document) is stored on ``/activesurv/run_info``.
 On SIGINT/SIGTERM the bag is closed cleanly.
 
@@ -23,12 +26,14 @@ from __future__ import annotations
 import json
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     Qos,
     QosDurability,
@@ -37,6 +42,7 @@ from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     QosReliability,
     QosTime,
 )
+from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
 from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, message_class, open_writer
@@ -44,6 +50,7 @@ from activesurv_bringup.errors import BagError
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.timeseries import ClockEstimate
 
 STATUS_TOPIC = topics.RECORDER_STATUS
 
@@ -78,6 +85,8 @@ class RecorderNode(Node):
         self.last_image: dict[str, float] = {}
         self.counts: dict[str, int] = {}
         self.thin = set(g('thin_topics').value)
+        self.sim_time = bool(g('use_sim_time').value)
+        self.clock = ClockEstimate()
         self._lock = threading.Lock()
         try:
             info = json.loads(str(g('run_info').value))
@@ -157,12 +166,16 @@ class RecorderNode(Node):
 
     def _callback(self, topic: str, type_name: str) -> Any:
         thinned = topic in self.thin
+        is_clock = topic == topics.CLOCK and self.sim_time
 
         def callback(data: bytes) -> None:
             with self._lock:  # callbacks may run concurrently (multi-threaded executors)
                 if self.bag is None:
                     return
-                now = self.get_clock().now().nanoseconds
+                if is_clock:
+                    c = deserialize_message(data, ClockMsg).clock
+                    self.clock.tick(c.sec + 1e-9 * c.nanosec, time.monotonic())
+                now = self._stamp()
                 if thinned and self.image_period:
                     last = self.last_image.get(topic, -1e18)
                     if now * 1e-9 - last < self.image_period - 1e-6:
@@ -172,6 +185,14 @@ class RecorderNode(Node):
                 self.counts[topic] = self.counts.get(topic, 0) + 1
 
         return callback
+
+    def _stamp(self) -> int:
+        """Nanoseconds to log a message received now with."""
+        if self.sim_time:
+            est = self.clock.now(time.monotonic())
+            if est is not None:
+                return max(round(est * 1e9), self.get_clock().now().nanoseconds)
+        return int(self.get_clock().now().nanoseconds)
 
     def close(self) -> None:
         with self._lock:

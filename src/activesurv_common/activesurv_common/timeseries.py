@@ -95,3 +95,47 @@ class FrameBuffer(Generic[T]):
 
     def stamps(self) -> Sequence[float]:
         return tuple(self._t)
+
+
+class ClockEstimate:
+    """Simulated time between the ticks of ``/clock``, read off a steady wall clock.
+
+    A node on simulated time sees the time of the last tick (50 Hz: up to 20 ms behind). A
+    recorder that stamps what it receives, or a latency measured in simulated time, needs
+    better: this extrapolates from the last tick at the rate the recent ticks ran (the real
+    time factor), never more than ``max_ahead`` simulated seconds past it (a paused clock
+    stays paused) and never backwards.
+    """
+
+    def __init__(self, window: int = 50, max_ahead: float = 0.25) -> None:
+        self.window = window
+        self.max_ahead = max_ahead
+        self._ticks: list[tuple[float, float]] = []
+        self._last = -math.inf
+
+    def tick(self, sim: float, wall: float) -> None:
+        """A /clock tick at simulated time ``sim``, received at steady wall time ``wall``."""
+        if not (math.isfinite(sim) and math.isfinite(wall)):
+            return
+        if self._ticks and sim < self._ticks[-1][0]:
+            self._ticks.clear()  # the clock was reset (a new run): start over
+            self._last = -math.inf
+        self._ticks.append((sim, wall))
+        del self._ticks[: -self.window]
+
+    @property
+    def rate(self) -> float:
+        """Simulated seconds per wall second over the recent ticks (1.0 until known)."""
+        if len(self._ticks) < 2:
+            return 1.0
+        (s0, w0), (s1, w1) = self._ticks[0], self._ticks[-1]
+        return (s1 - s0) / (w1 - w0) if w1 > w0 and s1 > s0 else 1.0
+
+    def now(self, wall: float) -> float | None:
+        """Simulated time at steady wall time ``wall``; None before the first tick."""
+        if not self._ticks:
+            return None
+        sim, at = self._ticks[-1]
+        ahead = min(max(wall - at, 0.0) * self.rate, self.max_ahead)
+        self._last = max(self._last, sim + ahead)
+        return self._last

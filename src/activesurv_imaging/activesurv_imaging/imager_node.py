@@ -115,15 +115,19 @@ class ImagerNode(Node):
         if self.camera_id in msg.camera_ids:
             n = vector3(msg.predicted_normal)
             self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n)
+            self._on_tick()
 
     def _on_image(self, msg: Image) -> None:
         self.core.add_frame(time_to_sec(msg.header.stamp), msg)
+        if self.core.pending:
+            self._on_tick()  # measure as soon as the frame is here, not on the next tick
 
     def _on_info(self, msg: CameraInfo) -> None:
         if self.core.camera is not None:
             return
         try:
             self.core.set_camera(model_from_camera_info(msg, self.camera_id))
+            self._on_tick()
         except VisionErrors as exc:
             self.counts['bad_camera_info'] += 1
             self.get_logger().error(f'bad camera_info: {exc}', throttle_duration_sec=5)
@@ -132,6 +136,8 @@ class ImagerNode(Node):
         q = joint_vector(msg, self.core.joint_names)
         if q is None or not self.core.add_joints(time_to_sec(msg.header.stamp), q):
             self.counts['bad_joint_states'] += 1
+        elif self.core.pending:
+            self._on_tick()
 
     def _beat(self) -> None:
         self._beat_pub.publish(

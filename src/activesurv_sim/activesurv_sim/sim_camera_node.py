@@ -49,7 +49,7 @@ PARAMS = (
     ),
     Param('intrinsics_file', '', 'camera YAML (camera_calibration layout); overrides the type'),
     Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
-    Param('trigger_delay', 0.05, 'min s from a demand instant to its frame', minimum=0.0),
+    Param('trigger_delay', 0.0, 'min s from a demand instant to its frame', minimum=0.0),
     Param('state_hold', 0.2, 's a state may be extrapolated', minimum=0.0),
     Param('seed', 0, 'image noise seed'),
     Param('side_marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
@@ -111,7 +111,8 @@ class SimCameraNode(Node):
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
         self._pending: set[float] = set()
-        self.create_timer(0.02, self._on_tick)
+        # States arriving trigger the frames waiting for them; the timer only ends the wait.
+        self.create_timer(0.05, self._on_tick)
         rate = float(g('frame_rate').value)
         self._last_streamed = -math.inf
         if rate > 0.0:
@@ -125,6 +126,8 @@ class SimCameraNode(Node):
     def _on_object(self, msg: ObjectState) -> None:
         if not self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg)):
             self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
+        elif self._pending:
+            self._on_tick()  # a frame waiting for this state is rendered now, not on a tick
 
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
@@ -133,10 +136,13 @@ class SimCameraNode(Node):
                 f'ignored joint state without finite {self.sim.joint_names}',
                 throttle_duration_sec=5,
             )
+        elif self._pending:
+            self._on_tick()
 
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:
             self._pending.add(time_to_sec(msg.demand_instant))
+            self._on_tick()
 
     def _publish(self, t: float) -> None:
         hold = float(self.get_parameter('state_hold').value)
@@ -171,7 +177,8 @@ class SimCameraNode(Node):
         due = [
             t
             for t in self._pending
-            if now >= t + delay and (self._covered(t) or now >= t + delay + hold)
+            # States at or after t prove the instant has passed, whatever this clock says yet.
+            if (self._covered(t) and (delay <= 0.0 or now >= t + delay)) or now >= t + delay + hold
         ]
         for t in sorted(due):
             self._pending.discard(t)

@@ -1,8 +1,11 @@
 """The ``sim_stage`` node: a simulated camera stage with the bridge's topics and behaviour.
 
-Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal).
-Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate``,
-    /diagnostics.
+Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); capture_request
+    (activesurv_interfaces/CaptureRequest): at each demand instant of its camera the stage
+    publishes its state stamped exactly then, as a controller that latches its encoders on the
+    camera's trigger line would, so camera and imager need not wait for the next sample.
+Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate`` and at
+    the demand instants, /diagnostics.
 The axes follow the kinematics core on the node's clock (simulated time in experiments) with
 the velocity and acceleration caps of the motion class (static, medium, fast). Goals outside the
 soft limits, or any goal for a static camera, are refused with a logged reason.
@@ -15,13 +18,14 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from rclpy.timer import Timer
 from sensor_msgs.msg import JointState
 
 from activesurv_common.ros import diagnostics, qos, topics
-from activesurv_common.ros.conversions import sec_to_time
+from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
-from activesurv_interfaces.msg import StageGoal
+from activesurv_interfaces.msg import CaptureRequest, StageGoal
 from activesurv_stages.config import MOTION_CLASSES, motion_class
 from activesurv_stages.conversions import goal_items, joint_state
 from activesurv_stages.errors import ConfigError, LimitError, StageError
@@ -67,6 +71,10 @@ class SimStageNode(Node):
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
+        self._triggers: dict[float, Timer | None] = {}
+        self.create_subscription(
+            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+        )
         self.create_timer(1.0 / float(g('publish_rate').value), self._publish)
         self.create_timer(1.0, self._publish_diagnostics)
 
@@ -92,6 +100,22 @@ class SimStageNode(Node):
                 self.counts['accepted'] += 1
             except LimitError as exc:
                 self._refuse(f'{joint}: goal refused: {exc}')
+
+    def _on_request(self, msg: CaptureRequest) -> None:
+        t = time_to_sec(msg.demand_instant)
+        now = self._now()
+        if self.camera_id not in msg.camera_ids or t in self._triggers or not t > now:
+            return
+        self._triggers[t] = self.create_timer(t - now, lambda: self._trigger(t))
+
+    def _trigger(self, t: float) -> None:
+        timer = self._triggers.get(t)
+        if timer is not None:
+            timer.cancel()
+            self.destroy_timer(timer)
+        self._publish()
+        self._triggers = {k: v for k, v in self._triggers.items() if k > t - 60.0}
+        self._triggers[t] = None
 
     def _publish(self) -> None:
         now = self._now()

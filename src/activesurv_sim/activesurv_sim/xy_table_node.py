@@ -5,6 +5,12 @@ Publishes:
         the simulated cameras and for evaluation; at ``publish_rate`` (simulated Hz).
     /clock (rosgraph_msgs/Clock) when ``publish_clock`` is true: simulated time starts at 0 and
         runs ``real_time_factor`` times as fast as the wall clock (slower when below 1).
+Subscribes:
+    capture_request (activesurv_interfaces/CaptureRequest): at each demand instant the table
+        publishes the object's state stamped exactly then (the paper's motion controller
+        records the target's exact pose at the demand instants), and, when it owns /clock, a
+        clock tick at exactly that instant: the simulated cameras render, and every node's
+        timers see the instant, without waiting for the next regular tick.
 Parameters: path_type (parabola, line, csv), path_points, csv_file, speed, acceleration,
     start_time (s of simulated time before the object starts), top_height, side_offset,
     side_normal, publish_rate, publish_clock, real_time_factor, frame_id.
@@ -15,13 +21,17 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from rclpy.clock import Clock as RclpyClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
+from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
 
 from activesurv_common.ros import qos, topics
-from activesurv_common.ros.conversions import sec_to_time
+from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
+from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg
 from activesurv_sim.xytable import ObjectModel, XYTable, named_path
@@ -52,6 +62,7 @@ PARAMS = (
         minimum=0,
     ),
     Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
+    Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
 )
 
 
@@ -87,6 +98,13 @@ class XYTableNode(Node):
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
         )
         self._pub = self.create_publisher(ObjectStateMsg, topics.OBJECT_STATE, qos.STATE)
+        self._last_clock = -1.0
+        self._triggers: dict[float, Timer | None] = {}
+        self._steady = RclpyClock(clock_type=ClockType.STEADY_TIME)
+        if bool(g('demand_states').value):
+            self.create_subscription(
+                CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+            )
         rate = float(g('publish_rate').value)
         # With its own clock the node steps on the wall clock; otherwise on its node clock.
         self.create_timer(
@@ -125,11 +143,38 @@ class XYTableNode(Node):
             if self._clock_pub is not None:
                 self._clock_pub.publish(Clock(clock=sec_to_time(0.0)))
             return
-        t = self.sim_time()
+        self._publish_at(self.sim_time())
+
+    def _publish_at(self, t: float) -> None:
         stamp = sec_to_time(t)
-        if self._clock_pub is not None:
-            self._clock_pub.publish(Clock(clock=stamp))
+        if self._clock_pub is not None and t > self._last_clock:
+            self._clock_pub.publish(Clock(clock=stamp))  # simulated time never runs back
+            self._last_clock = t
         self._pub.publish(object_state_msg(self.table.state(t), stamp, self.frame_id))
+
+    def _on_request(self, msg: CaptureRequest) -> None:
+        t = time_to_sec(msg.demand_instant)
+        if t in self._triggers or not t > self.sim_time():
+            return  # already scheduled (or a request replayed after its instant)
+        if not self.publish_clock:
+            # On someone else's clock: a simulated-time timer fires at its first tick >= t.
+            delay = t - self.sim_time()
+            self._triggers[t] = self.create_timer(delay, lambda: self._trigger(t))
+            return
+        if self._wall0 is None:
+            return
+        delay = max((t / self.rtf) - (time.monotonic() - self._wall0), 0.0)
+        self._triggers[t] = self.create_timer(delay, lambda: self._trigger(t), clock=self._steady)
+
+    def _trigger(self, t: float) -> None:
+        timer = self._triggers.get(t)
+        if timer is not None:
+            timer.cancel()
+            self.destroy_timer(timer)
+        self._publish_at(t)
+        # Keep the fired instants a while (a request may come again), not for hours.
+        self._triggers = {k: v for k, v in self._triggers.items() if k > t - 60.0}
+        self._triggers[t] = None
 
 
 def main(args: list[str] | None = None) -> int:

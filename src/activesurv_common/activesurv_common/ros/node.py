@@ -9,10 +9,15 @@ A node that cannot start (a bad parameter, a missing or malformed configuration 
 ``<name>: error: <reason>`` on stderr and the process exits with status 1, without a traceback.
 SIGINT and SIGTERM stop the spin; ``on_stop`` then runs while the node still has its publishers
 (fusion answers its open demands, the recorder closes its bag), and the context ends.
+
+Nodes spin on rclpy's ``EventsExecutor`` (C++, no wait set rebuilt on every wake-up: the
+single-threaded executor spent most of an idle node's CPU there); ``ACTIVESURV_EXECUTOR=single``
+selects rclpy's ``SingleThreadedExecutor`` instead.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 from collections.abc import Callable
@@ -21,7 +26,7 @@ from typing import TypeVar
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -41,6 +46,25 @@ STARTUP_ERRORS: tuple[type[Exception], ...] = (
 
 def one_line(exc: BaseException) -> str:
     return ' '.join(str(exc).split()) or type(exc).__name__
+
+
+EXECUTORS = ('events', 'single')
+
+
+def make_executor() -> Executor:
+    """The executor our processes spin (``ACTIVESURV_EXECUTOR``: events, the default, or single).
+
+    Raises:
+        ValueError: for another value of ``ACTIVESURV_EXECUTOR``.
+    """
+    kind = os.environ.get('ACTIVESURV_EXECUTOR', 'events') or 'events'
+    if kind not in EXECUTORS:
+        raise ValueError(f'ACTIVESURV_EXECUTOR must be one of {EXECUTORS}, got {kind!r}')
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+
+        return EventsExecutor()
+    return SingleThreadedExecutor()
 
 
 def run_node(
@@ -69,7 +93,13 @@ def run_node(
         print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
         rclpy.try_shutdown()
         return 1
-    executor = SingleThreadedExecutor()
+    try:
+        executor = make_executor()
+    except ValueError as exc:
+        print(f'{name}: error: {exc}', file=sys.stderr)
+        node.destroy_node()
+        rclpy.try_shutdown()
+        return 1
     executor.add_node(node)
     stopping = False
 

@@ -1,0 +1,40 @@
+"""Time series, frame buffer and the simulated-clock estimate (no ROS)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from activesurv_common.timeseries import ClockEstimate, TimeSeries
+
+
+def test_timeseries_interpolates_and_keeps_out_of_order_samples_sorted() -> None:
+    ts = TimeSeries(2)
+    for t, v in ((1.0, [0.0, 0.0]), (3.0, [2.0, 4.0]), (2.0, [1.5, 1.0])):
+        assert ts.add(t, v)
+    assert ts.latest_time == 3.0
+    assert np.allclose(ts.at(2.5), [1.75, 2.5])
+    assert ts.at(3.1) is None
+    assert np.allclose(ts.at(3.1, hold=0.2), [2.0, 4.0])
+    assert not ts.add(4.0, [np.nan, 0.0])
+
+
+def test_clock_estimate_extrapolates_at_the_ticks_rate() -> None:
+    c = ClockEstimate()
+    assert c.now(0.0) is None
+    for k in range(11):  # 50 Hz ticks of a clock running at half speed
+        c.tick(0.01 * k, 100.0 + 0.02 * k)
+    assert c.rate == pytest.approx(0.5)
+    # 8 ms of wall time after the tick at 0.100 s simulated: 4 ms of simulated time.
+    assert c.now(100.2 + 0.008) == pytest.approx(0.104)
+
+
+def test_clock_estimate_stops_at_max_ahead_and_never_runs_back() -> None:
+    c = ClockEstimate(max_ahead=0.05)
+    c.tick(1.0, 10.0)
+    c.tick(2.0, 11.0)
+    assert c.now(20.0) == pytest.approx(2.05)  # a paused clock does not run away
+    c.tick(2.01, 20.5)
+    assert c.now(20.5) == pytest.approx(2.05)  # not back to 2.01
+    c.tick(0.0, 30.0)  # a new run: the clock starts over
+    assert c.now(30.0) == 0.0

@@ -20,6 +20,15 @@ from activesurv_bringup.faults import Fault, Kill
 from activesurv_bringup.launcher import NodeSpec
 
 HOSTS = ('single', 'netns')
+# One worker thread per numerical library in each node process: a graph is many processes on
+# few cores, and OpenBLAS's and OpenCV's worker pools (which spin while they wait) only fought
+# each other there (frames took 2-4x longer). A value the user has set is kept.
+THREAD_LIMITS = {
+    'OPENBLAS_NUM_THREADS': '1',
+    'OMP_NUM_THREADS': '1',
+    'MKL_NUM_THREADS': '1',
+    'OPENCV_FOR_THREADS_NUM': '1',
+}
 PROCESSES = ('containers', 'nodes')
 
 
@@ -70,7 +79,7 @@ class RunOptions:
 
     def environment(self) -> dict[str, str]:
         """Environment variables every process of the run needs (this one included)."""
-        env: dict[str, str] = {}
+        env = {k: v for k, v in THREAD_LIMITS.items() if k not in os.environ}
         if self.dds_profile is not None:
             env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(self.dds_profile)
         if self.hosts == 'netns':

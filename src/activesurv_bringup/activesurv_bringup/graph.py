@@ -168,6 +168,7 @@ def graph_specs(
                     'max': [lim.max_position for lim in s.limits],
                     'initial': [float(v) for v in exp.setup.initial[cid]],
                     'motion_class': exp.system,
+                    'publish_rate': 10.0,  # states at the demand instants come extra
                 },
             )
         )
@@ -210,7 +211,9 @@ def graph_specs(
         'top_height': float(obj['top_height']),
         'side_offset': [float(v) for v in obj['side_offset']],
         'side_normal': [float(v) for v in obj['side_normal']],
-        'publish_rate': 50.0,
+        # 20 Hz of /clock and object states: the overhead camera runs at 10 Hz, every demand
+        # instant gets a tick and a state of its own, and each tick wakes every process.
+        'publish_rate': 20.0,
         'publish_clock': True,
         'real_time_factor': float(rtf),
         # The recorder and every simulated camera must hear the object from the start.

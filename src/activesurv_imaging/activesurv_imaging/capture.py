@@ -102,6 +102,20 @@ class CaptureCore(Generic[F]):
         # A stable seed per camera: the injected noise repeats from run to run.
         self._rng = np.random.default_rng(zlib.crc32(config.camera_id.encode()))
 
+    def warm_up(self) -> None:
+        """Measure a synthetic marker once, so that the first real demand does not pay for the
+        pipeline's lazy set-up (imports and first calls: 50-120 ms measured at rtf 1)."""
+        import cv2
+
+        from activesurv_common.camera_model import dynamic_camera
+        from activesurv_imaging.marker_pose import measure_marker
+
+        img = np.full((480, 640), 25, np.uint8)
+        cv2.ellipse(img, (320, 240), (110, 80), 20.0, 0.0, 360.0, 230, -1, cv2.LINE_AA)
+        img = cv2.GaussianBlur(img, (0, 0), 0.8)
+        cam = self.camera or dynamic_camera(self.config.camera_id)
+        measure_marker(img, cam, self.config.marker_radius, np.array([0.0, 0.0, -1.0]))
+
     # -- inputs --------------------------------------------------------------------------
     def set_camera(self, camera: CameraModel) -> None:
         self.camera = camera

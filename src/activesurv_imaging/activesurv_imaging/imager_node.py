@@ -79,6 +79,7 @@ class ImagerNode(Node):
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)
+        self.core.warm_up()
         self.counts: Counter[str] = Counter()
 
         self._obs_pub = self.create_publisher(

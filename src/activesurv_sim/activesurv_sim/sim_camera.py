@@ -3,6 +3,14 @@
 Object states (top marker, side marker, side normal) and stage joint states arrive as
 time-stamped samples; a frame for instant t uses both interpolated to t, so a triggered capture
 at a demand instant sees exactly the scene at that instant.
+
+Rendering ahead: when the truth at a coming instant is already determined (the xy table's
+programmed path; a stage that gets no new goal), the simulator can say so before the instant
+(:meth:`SimulatedCamera.plan`), and the frame is rendered then (:meth:`render_ahead`), while
+nothing waits for it. At the instant, :meth:`frame_at` hands out that frame only if the states
+that really arrived for the instant match the planned ones (1 um, 1 urad); otherwise it renders
+again. A frame is thus always the truth at its instant; only the work moves earlier, as the
+simulated world's rendering is work a real lab's cameras do in hardware.
 """
 
 from __future__ import annotations
@@ -70,6 +78,10 @@ class SimulatedCamera:
         self.objects = TimeSeries(9)
         n_joints = len(mount.joint_names) if isinstance(mount, CameraMount) else 0
         self.joints = TimeSeries(max(n_joints, 1))
+        self._planned: dict[float, list[NDArray[np.float64] | None]] = {}
+        self._ahead: dict[
+            float, tuple[NDArray[np.uint8], NDArray[np.float64], NDArray[np.float64]]
+        ] = {}
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -88,8 +100,60 @@ class SimulatedCamera:
             raise RenderError(f'no stage state near t={t:.3f} s')
         return self.mount.pose_from_joints(q)
 
-    def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:
-        """The frame exposed at ``t``.
+    def warm_up(self) -> None:
+        """Render one frame (a marker 0.5 m ahead) now: the first real frame then pays no lazy
+        set-up (the noise pools are drawn here)."""
+        marker = Plate.disc([0.0, 0.0, 0.5], [0.0, 0.0, -1.0], 0.0125, 0.03)
+        self.renderer.render(
+            Transform(np.eye(3), np.zeros(3)), Scene((marker,)), self.noise, self.rng
+        )
+
+    def plan(self, t: float, state: ArrayLike | None = None, q: ArrayLike | None = None) -> None:
+        """The object state (9,) and/or stage joints planned for instant ``t``."""
+        entry = self._planned.setdefault(t, [None, None])
+        if state is not None:
+            entry[0] = np.asarray(state, dtype=np.float64).reshape(9)
+        if q is not None:
+            entry[1] = np.asarray(q, dtype=np.float64).reshape(-1)
+        if len(self._planned) > 64:  # requests whose instant never came: keep the newest
+            for old in sorted(self._planned)[:-64]:
+                del self._planned[old]
+
+    def render_ahead(self, t: float) -> bool:
+        """Render the frame of ``t`` now if its truth is planned; True if a frame is ready."""
+        if t in self._ahead:
+            return True
+        state, q = self._planned.get(t, (None, None))
+        static = not isinstance(self.mount, CameraMount)
+        if state is None or (q is None and not static):
+            return False
+        q_used = np.zeros(0) if static or q is None else q
+        self._ahead[t] = (self.render_state(state, q_used), state, q_used)
+        return True
+
+    def frame_at(self, t: float, hold: float = 0.2) -> tuple[NDArray[np.uint8], bool]:
+        """The frame exposed at ``t``, and whether it was rendered ahead.
+
+        Raises:
+            RenderError: if the object or stage state at ``t`` is unknown.
+        """
+        state, q = self.truth_at(t, hold)
+        self._planned.pop(t, None)
+        ahead = self._ahead.pop(t, None)
+        for old in [k for k in self._ahead if k < t]:
+            del self._ahead[old]  # frames of instants that passed without a request
+        if ahead is not None:
+            frame, s0, q0 = ahead
+            if np.allclose(s0, state, rtol=0.0, atol=1e-6) and np.allclose(
+                q0, q, rtol=0.0, atol=1e-6
+            ):
+                return frame, True
+        return self.render_state(state, q), False
+
+    def truth_at(
+        self, t: float, hold: float = 0.2
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Object state (9,) and stage joints at ``t`` (joints empty for a static mount).
 
         Raises:
             RenderError: if the object or stage state at ``t`` is unknown.
@@ -97,6 +161,25 @@ class SimulatedCamera:
         state = self.objects.at(t, hold)
         if state is None:
             raise RenderError(f'no object state near t={t:.3f} s')
-        return self.renderer.render(
-            self.camera_pose(t, hold), object_scene(state, self.geometry), self.noise, self.rng
-        )
+        if not isinstance(self.mount, CameraMount):
+            return state, np.zeros(0)
+        q = self.joints.at(t, hold)
+        if q is None:
+            raise RenderError(f'no stage state near t={t:.3f} s')
+        return state, q
+
+    def render_state(self, state: ArrayLike, q: ArrayLike) -> NDArray[np.uint8]:
+        """The frame of the object in ``state`` (9,) with the stage at joints ``q``."""
+        if isinstance(self.mount, CameraMount):
+            T = self.mount.pose_from_joints(np.asarray(q, dtype=np.float64))
+        else:
+            T = self.mount
+        return self.renderer.render(T, object_scene(state, self.geometry), self.noise, self.rng)
+
+    def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:
+        """The frame exposed at ``t`` (rendered now).
+
+        Raises:
+            RenderError: if the object or stage state at ``t`` is unknown.
+        """
+        return self.render_state(*self.truth_at(t, hold))

@@ -5,6 +5,9 @@ Subscribes:
     <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
     capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
         the demand instant (like a hardware trigger armed ahead of time).
+    sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth at a requested
+        instant as already determined; the frame is rendered ahead with it and published at
+        the instant if the states that arrive then match (see ``activesurv_sim.sim_camera``).
 Publishes:
     <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
 Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
@@ -60,6 +63,7 @@ PARAMS = (
     Param('read_noise', 1.0, 'read noise (grey levels)', minimum=0.0),
     Param('supersample', 8, 'edge supersampling per axis', minimum=1, maximum=16),
     Param('inject_frozen', False, 'fault: keep sending the first frame'),
+    Param('render_ahead', True, 'render a requested frame when its truth is planned'),
 )
 
 
@@ -95,6 +99,7 @@ class SimCameraNode(Node):
             ),
             int(g('seed').value),
         )
+        self.sim.warm_up()
         self.frame_id = f'{self.camera_id}_optical'
         self._image_pub = self.create_publisher(
             Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
@@ -110,6 +115,17 @@ class SimCameraNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
+        if bool(g('render_ahead').value):
+            self.create_subscription(
+                ObjectState, topics.PLANNED_OBJECT_STATE, self._on_planned_object, qos.EVENTS
+            )
+            if self.sim.joint_names:
+                self.create_subscription(
+                    JointState,
+                    topics.planned_joint_states(self.camera_id),
+                    self._on_planned_joints,
+                    qos.EVENTS,
+                )
         self._pending: set[float] = set()
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
@@ -118,6 +134,7 @@ class SimCameraNode(Node):
         if rate > 0.0:
             self.create_timer(1.0 / rate, self._on_stream)
         self.frames_published = 0
+        self.frames_ahead = 0
         self._frozen: Any = None
 
     def _now(self) -> float:
@@ -141,13 +158,34 @@ class SimCameraNode(Node):
 
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:
-            self._pending.add(time_to_sec(msg.demand_instant))
+            t = time_to_sec(msg.demand_instant)
+            self._pending.add(t)
             self._on_tick()
+            self._ahead(t)
+
+    def _on_planned_object(self, msg: ObjectState) -> None:
+        t = time_to_sec(msg.header.stamp)
+        self.sim.plan(t, state=object_state_vector(msg))
+        self._ahead(t)
+
+    def _on_planned_joints(self, msg: JointState) -> None:
+        q = joint_vector(msg, self.sim.joint_names)
+        if q is not None:
+            t = time_to_sec(msg.header.stamp)
+            self.sim.plan(t, q=q)
+            self._ahead(t)
+
+    def _ahead(self, t: float) -> None:
+        if t in self._pending:
+            try:
+                self.sim.render_ahead(t)
+            except (SimError, CommonError) as exc:
+                self.get_logger().warning(f'no frame ahead for t={t:.3f}: {exc}')
 
     def _publish(self, t: float) -> None:
         hold = float(self.get_parameter('state_hold').value)
         try:
-            gray = self.sim.render_at(t, hold)
+            gray, ahead = self.sim.frame_at(t, hold)
         except (SimError, CommonError) as exc:
             self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
             return
@@ -159,6 +197,7 @@ class SimCameraNode(Node):
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
         self.frames_published += 1
+        self.frames_ahead += int(ahead)
 
     def _covered(self, t: float) -> bool:
         """Object and stage states are known at or after ``t`` (interpolation, no holding)."""

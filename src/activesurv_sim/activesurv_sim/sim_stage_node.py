@@ -3,7 +3,9 @@
 Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); capture_request
     (activesurv_interfaces/CaptureRequest): at each demand instant of its camera the stage
     publishes its state stamped exactly then, as a controller that latches its encoders on the
-    camera's trigger line would, so camera and imager need not wait for the next sample.
+    camera's trigger line would, so camera and imager need not wait for the next sample; and
+    on the request, on ``sim/<camera_id>/planned_joint_states``, where it will be then if no
+    new goal comes (for the simulated camera's rendering ahead).
 Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate`` and at
     the demand instants, /diagnostics.
 The axes follow the kinematics core on the node's clock (simulated time in experiments) with
@@ -72,6 +74,9 @@ class SimStageNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
         self._triggers: dict[float, Timer | None] = {}
+        self._planned_pub = self.create_publisher(
+            JointState, topics.planned_joint_states(self.camera_id), qos.EVENTS
+        )
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
@@ -107,6 +112,17 @@ class SimStageNode(Node):
         if self.camera_id not in msg.camera_ids or t in self._triggers or not t > now:
             return
         self._triggers[t] = self.create_timer(t - now, lambda: self._trigger(t))
+        self._publish_planned(t)
+
+    def _publish_planned(self, t: float) -> None:
+        """Where the axes will be at ``t`` if no new goal comes (simulated cameras render
+        ahead with it and check against the state published at ``t``)."""
+        states = [self.axes[j].state(t) for j in self.joints]
+        self._planned_pub.publish(
+            joint_state(
+                self.joints, [s[0] for s in states], [s[1] for s in states], sec_to_time(t)
+            )
+        )
 
     def _trigger(self, t: float) -> None:
         timer = self._triggers.get(t)

@@ -10,7 +10,9 @@ Subscribes:
         publishes the object's state stamped exactly then (the paper's motion controller
         records the target's exact pose at the demand instants), and, when it owns /clock, a
         clock tick at exactly that instant: the simulated cameras render, and every node's
-        timers see the instant, without waiting for the next regular tick.
+        timers see the instant, without waiting for the next regular tick. On the request it
+        also publishes ``sim/planned_object_state``, the state its program will reach then
+        (simulated cameras render ahead with it; see ``sim_camera``).
 Parameters: path_type (parabola, line, csv), path_points, csv_file, speed, acceleration,
     start_time (s of simulated time before the object starts), top_height, side_offset,
     side_normal, publish_rate, publish_clock, real_time_factor, frame_id.
@@ -101,6 +103,9 @@ class XYTableNode(Node):
         self._last_clock = -1.0
         self._triggers: dict[float, Timer | None] = {}
         self._steady = RclpyClock(clock_type=ClockType.STEADY_TIME)
+        self._planned_pub = self.create_publisher(
+            ObjectStateMsg, topics.PLANNED_OBJECT_STATE, qos.EVENTS
+        )
         if bool(g('demand_states').value):
             self.create_subscription(
                 CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
@@ -156,6 +161,9 @@ class XYTableNode(Node):
         t = time_to_sec(msg.demand_instant)
         if t in self._triggers or not t > self.sim_time():
             return  # already scheduled (or a request replayed after its instant)
+        self._planned_pub.publish(
+            object_state_msg(self.table.state(t), sec_to_time(t), self.frame_id)
+        )
         if not self.publish_clock:
             # On someone else's clock: a simulated-time timer fires at its first tick >= t.
             delay = t - self.sim_time()

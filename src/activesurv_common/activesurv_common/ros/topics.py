@@ -8,6 +8,10 @@ from __future__ import annotations
 # Ground truth and time (simulator)
 OBJECT_STATE = 'object_state'
 CLOCK = '/clock'
+# Simulation only: the truth at a demand instant as already determined before it (the table's
+# programmed path; a stage's motion when no new goal comes), so a simulated camera can render
+# ahead what it will expose. Real drivers publish nothing of the kind.
+PLANNED_OBJECT_STATE = 'sim/planned_object_state'
 # Prediction
 OVERHEAD_FIX = 'overhead/fix'
 OVERHEAD_TRACK = 'overhead/track'
@@ -44,6 +48,11 @@ def heartbeat(camera_id: str) -> str:
 
 def joint_states(camera_id: str) -> str:
     return f'{camera_id}/stage/joint_states'
+
+
+def planned_joint_states(camera_id: str) -> str:
+    """Simulation only: a stage's state at a coming demand instant, if no new goal comes."""
+    return f'sim/{camera_id}/planned_joint_states'
 
 
 def goal(camera_id: str) -> str:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import yaml
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -115,6 +116,126 @@ class BagWriter:
 
     def close(self) -> None:
         self.writer.close()
+
+
+class SplitBagWriter:
+    """A bag split into files of at most ``max_duration`` (bag time), as ``ros2 bag record
+    --max-bag-duration`` does: ``bag_0.mcap``, ``bag_1.mcap``, ... in the bag directory,
+    listed in one ``metadata.yaml`` (rewritten at every split, so the finished files are a
+    readable bag at any moment). The open file is written in a hidden ``.split_N`` directory
+    and moved in when it is closed. Every file declares the topics in the same order (the same
+    MCAP channel ids, which readers of split bags rely on) and starts with the last message of
+    every latched topic recorded so far and the run information, so it replays on its own.
+
+    Raises:
+        BagError: as :func:`open_writer`.
+    """
+
+    def __init__(self, path: Path, max_duration: float, latched: set[str] | None = None) -> None:
+        if path.exists():
+            raise BagError(f'bag {path} already exists; choose a new directory')
+        if not max_duration > 0.0:
+            raise BagError(f'max bag duration must be > 0 s, got {max_duration}')
+        path.mkdir(parents=True)
+        self.path = path
+        self.max_ns = int(max_duration * 1e9)
+        self.latched = latched if latched is not None else set()
+        self.ts = typestore()
+        self.index = 0
+        self.closed: list[dict[str, Any]] = []
+        self._topics: dict[str, tuple[str, Any]] = {}  # in the order they appeared
+        self._last: dict[str, tuple[str, bytes]] = {}
+        self._start: int | None = None
+        self._open(None)
+
+    def _split_dir(self, n: int) -> Path:
+        return self.path / f'.split_{n}'
+
+    def _open(self, t_ns: int | None) -> None:
+        d = self._split_dir(self.index)
+        try:
+            w = Writer(d, version=9, storage_plugin=StoragePlugin.MCAP)
+            w.open()
+        except Exception as exc:
+            raise BagError(f'cannot create bag file in {d}: {exc}') from exc
+        self.current = BagWriter(d, w, self.ts, {})
+        self._start = t_ns
+        for topic, (msgtype, qos) in self._topics.items():
+            self.current.connection(topic, msgtype, qos)
+        if t_ns is not None:
+            for topic, (msgtype, data) in self._last.items():
+                self.current.write_raw(topic, msgtype, t_ns, data)
+
+    def _rotate(self) -> None:
+        self.current.close()
+        d = self._split_dir(self.index)
+        name = f'{self.path.name}_{self.index}.mcap'
+        (d / f'{d.name}.mcap').rename(self.path / name)
+        meta = yaml.safe_load((d / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        (d / 'metadata.yaml').unlink()
+        d.rmdir()
+        for f in meta.get('files') or []:
+            f['path'] = name
+        meta['relative_file_paths'] = [name]
+        self.closed.append(meta)
+        write_merged_metadata(self.path, self.closed)
+        self.index += 1
+
+    def connection(self, topic: str, msgtype: str, qos: Any = None) -> Any:
+        self._topics.setdefault(topic, (msgtype, qos))
+        return self.current.connection(topic, msgtype, qos)
+
+    def write_raw(self, topic: str, msgtype: str, t_ns: int, data: bytes) -> None:
+        self._topics.setdefault(topic, (msgtype, None))
+        if self._start is None:
+            self._start = t_ns
+        elif t_ns - self._start >= self.max_ns:
+            self._rotate()
+            self._open(t_ns)
+        if topic in self.latched or topic == RUN_INFO_TOPIC:
+            self._last[topic] = (msgtype, bytes(data))
+        self.current.write_raw(topic, msgtype, t_ns, data)
+
+    def write_json(self, topic: str, t_ns: int, obj: Any) -> None:
+        msg = self.ts.types['std_msgs/msg/String'](data=json.dumps(obj))
+        data = self.ts.serialize_cdr(msg, 'std_msgs/msg/String')
+        self.write_raw(topic, 'std_msgs/msg/String', t_ns, bytes(data))
+
+    def flush(self) -> None:
+        self.current.flush()
+
+    def close(self) -> None:
+        self._rotate()
+
+
+def write_merged_metadata(path: Path, parts: list[dict[str, Any]]) -> None:
+    """``metadata.yaml`` of a bag made of the files described by ``parts`` (each the
+    ``rosbag2_bagfile_information`` of one file)."""
+    first = dict(parts[0])
+    starts = [int(p['starting_time']['nanoseconds_since_epoch']) for p in parts]
+    ends = [s + int(p['duration']['nanoseconds']) for s, p in zip(starts, parts, strict=True)]
+    topics: dict[str, dict[str, Any]] = {}
+    for p in parts:
+        for t in p.get('topics_with_message_count') or []:
+            name = t['topic_metadata']['name']
+            if name in topics:
+                topics[name]['message_count'] += int(t['message_count'])
+            else:
+                topics[name] = {
+                    'message_count': int(t['message_count']),
+                    'topic_metadata': t['topic_metadata'],
+                }
+    first.update(
+        relative_file_paths=[f for p in parts for f in p['relative_file_paths']],
+        files=[f for p in parts for f in (p.get('files') or [])],
+        message_count=sum(int(p['message_count']) for p in parts),
+        starting_time={'nanoseconds_since_epoch': min(starts)},
+        duration={'nanoseconds': max(ends) - min(starts)},
+        topics_with_message_count=[topics[k] for k in sorted(topics)],
+    )
+    tmp = path / 'metadata.yaml.tmp'
+    tmp.write_text(yaml.safe_dump({'rosbag2_bagfile_information': first}, sort_keys=False))
+    tmp.replace(path / 'metadata.yaml')
 
 
 def open_writer(path: Path) -> BagWriter:

@@ -8,6 +8,9 @@
         [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
         [--hosts {single,netns}]
         [--dds-profile {large-images,PATH.xml}]
+    activesurv surveil --out DIR [--duration S] [--rtf X] [--seed N] [--arrival-interval S]
+        [--demand-interval S] [--demand-at x=X ...] [--max-bag-duration S]
+        [--system {static,medium,fast}]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}]
@@ -89,10 +92,41 @@ def _build_parser() -> argparse.ArgumentParser:
         help='graph mode with every node in this process (one executor)',
     )
 
+    sv = sub.add_parser(
+        'surveil', help='continuous surveillance: objects one after another, until stopped'
+    )
+    sv.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
+    sv.add_argument('--duration', type=float, default=None, help='simulated s (default: SIGINT)')
+    sv.add_argument('--rtf', type=float, default=1.0, help='simulated s per wall s')
+    sv.add_argument('--seed', type=int, default=1, help='seeds the paths and image noise')
+    sv.add_argument(
+        '--arrival-interval', type=float, default=30.0, help='s from one entry to the next'
+    )
+    sv.add_argument(
+        '--demand-interval', type=float, default=2.0, help="s between an object's demands"
+    )
+    sv.add_argument(
+        '--demand-at',
+        action='append',
+        default=[],
+        metavar='x=X',
+        help='a demand where the object crosses the line x = X m (repeat for more lines); '
+        'replaces --demand-interval',
+    )
+    sv.add_argument(
+        '--max-bag-duration', type=float, default=0.0, help='split the bag every S s (0: never)'
+    )
+    sv.add_argument('--system', choices=SYSTEMS, default='fast')
+    sv.add_argument('--processes', choices=PROCESSES, default='containers')
+    sv.add_argument(
+        '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag'
+    )
+    sv.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
+
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
-    rpl.add_argument('--rtf', type=float, default=0.5, help='bag s per wall s')
+    rpl.add_argument('--rtf', type=float, default=1.0, help='bag s per wall s')
 
     rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
@@ -228,7 +262,28 @@ def _run_on_hosts(
     return doc
 
 
-def replay(bag: Path, out: Path, rtf: float = 0.5) -> list[dict[str, Any]]:
+def surveil(out: Path, session: Any, options: RunOptions | None = None) -> dict[str, Any]:
+    """Run a continuous session into ``out`` (new or empty); returns its results document."""
+    from activesurv_bringup.surveil import run_surveil
+
+    new_output_dir(out)
+    started = time.monotonic()
+
+    def say(text: str) -> None:
+        print(f'  surveil: {text}', flush=True)
+
+    doc = run_surveil(out, session, options, say)
+    s = doc['summary']
+    lat = s['latency_median_ms']
+    say(
+        f'{s["objects"]} objects, {s["demands"]} demands, {s["ok"]} ok, median latency '
+        + (f'{lat:.0f} ms' if lat is not None else '-')
+        + f'; {time.monotonic() - started:.0f} s -> {out / "results.json"}'
+    )
+    return doc
+
+
+def replay(bag: Path, out: Path, rtf: float = 1.0) -> list[dict[str, Any]]:
     """Re-run imaging and fusion on a recorded run (its bag or its directory) into ``out``."""
     from activesurv_bringup.replay import compare, run_replay
 
@@ -306,6 +361,19 @@ def main(argv: list[str] | None = None) -> int:
                 args.expect,
                 run_options(args),
             )
+        elif args.command == 'surveil':
+            from activesurv_bringup.surveil import SurveilOptions, parse_demand_at
+
+            session = SurveilOptions(
+                duration=args.duration,
+                arrival_interval=args.arrival_interval,
+                demand_interval=args.demand_interval,
+                demand_at=parse_demand_at(args.demand_at),
+                max_bag_duration=args.max_bag_duration,
+                system=args.system,
+                seed=args.seed,
+            )
+            surveil(args.out, session, run_options(args))
         elif args.command == 'replay':
             replay(args.bag, args.out, args.rtf)
         elif args.command == 'bag':

@@ -15,6 +15,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -359,12 +360,48 @@ def _chaos(
             progress(f'restarted {k.node} at simulated time {sim_time:.2f} s')
 
 
+@dataclass(frozen=True)
+class Until:
+    """When a graph run ends, and what it says meanwhile.
+
+    Attributes:
+        done: True when the run should end (the monitor shows simulated time and estimates).
+        wall_limit: wall seconds after simulated time starts at which the run is failed.
+        report: a progress line, or None when there is nothing new to say.
+    """
+
+    done: Callable[[Any], bool]
+    wall_limit: float
+    report: Callable[[Any], str | None]
+
+
+def experiment_until(exp: Experiment, rtf: float) -> Until:
+    """An experiment ends when every demand has an answer (or its time is long past)."""
+    m = len(exp.demand_times)
+    end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
+    shown = [-1]
+
+    def report(mon: Any) -> str | None:
+        if len(mon.estimates) == shown[0]:
+            return None
+        shown[0] = len(mon.estimates)
+        return f'demand {shown[0]} of {m} answered, simulated time {mon.sim_time:.1f} s'
+
+    return Until(
+        lambda mon: len(mon.estimates) >= m or mon.sim_time >= end_sim,
+        (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0,
+        report,
+    )
+
+
 def run_graph(
     exp: Experiment,
     out_dir: Path,
     options: RunOptions | None = None,
     progress: Progress = print,
     hosts: NetnsHosts | None = None,
+    until: Until | None = None,
+    specs: list[NodeSpec] | None = None,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
@@ -374,6 +411,9 @@ def run_graph(
     ``options.thin`` topics are thinned in the bag. With ``hosts`` (namespaces ``core``,
     ``cam1`` ...; this process must already be in ``core``) every camera's nodes run on their
     own host.
+
+    ``until`` replaces the experiment's end (every demand answered); ``specs`` replaces the
+    experiment's nodes (as :func:`graph_specs` would list them, xy table last).
 
     Raises:
         ConfigError: for options that do not fit this run (a node to kill that is not in it).
@@ -386,9 +426,16 @@ def run_graph(
     bag = out_dir / 'bag'
     if bag.exists():
         raise ConfigError(f'{bag} exists: give a new --out directory')
-    specs = graph_specs(
-        exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin, split_hosts=hosts is not None
-    )
+    if specs is None:
+        specs = graph_specs(
+            exp,
+            bag,
+            opts.rtf,
+            opts.image_rate,
+            opts.faults,
+            opts.thin,
+            split_hosts=hosts is not None,
+        )
     if opts.extra:
         specs = specs[:-1] + list(opts.extra) + specs[-1:]
     by_name = {s.name: s for s in specs[:-1]}
@@ -398,12 +445,12 @@ def run_graph(
     if opts.processes == 'containers' and not opts.compose:
         alone = [k.node for k in opts.kills] + [s.name for s in opts.extra]
         specs = group_processes(specs[:-1], alone) + specs[-1:]
+    rule = until or experiment_until(exp, opts.rtf)
     with scoped_environ(opts.environment()):
-        return _run(exp, out_dir, bag, specs, by_name, opts, progress, hosts, rclpy)
+        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rclpy, rule)
 
 
 def _run(
-    exp: Experiment,
     out_dir: Path,
     bag: Path,
     specs: list[NodeSpec],
@@ -412,11 +459,11 @@ def _run(
     progress: Progress,
     hosts: NetnsHosts | None,
     rclpy: Any,
+    until: Until,
 ) -> Path:
     killed: set[Kill] = set()
     restarted: set[Kill] = set()
     kills = opts.kills
-    rtf = opts.rtf
     startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
     env = dict(os.environ)
@@ -436,7 +483,6 @@ def _run(
             else None
         )
         launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
-    m = len(exp.demand_times)
     try:
         if isinstance(launcher, Launcher):
             launcher.start()
@@ -452,29 +498,29 @@ def _run(
                 )
             monitor.spin(0.2)
         monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
-        progress(f'{len(specs)} nodes up; starting the xy table and simulated time')
+        n_nodes = sum(len(s.members) or 1 for s in specs)
+        progress(
+            f'{n_nodes} nodes up in {len(specs) - 1} processes; starting the xy table and '
+            'simulated time'
+        )
         if isinstance(launcher, Launcher):
             launcher.start_node(specs[-1])
         else:
             launcher.add(specs[-1:])
         cpu0, wall0 = _cpu(launcher), time.monotonic()
-        end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
-        wall_limit = time.monotonic() + (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0
-        shown = -1
-        while len(monitor.estimates) < m and monitor.sim_time < end_sim:
+        wall_limit = time.monotonic() + until.wall_limit
+        while not until.done(monitor):
             if isinstance(launcher, Launcher):
                 _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
             launcher.check()
             monitor.spin(0.25)
-            if len(monitor.estimates) != shown:
-                shown = len(monitor.estimates)
-                progress(
-                    f'demand {shown} of {m} answered, simulated time {monitor.sim_time:.1f} s'
-                )
+            line = until.report(monitor)
+            if line:
+                progress(line)
             if time.monotonic() > wall_limit:
                 raise NodeDiedError(
-                    f'the run did not finish in time (simulated time '
-                    f'{monitor.sim_time:.1f} s of {end_sim:.1f} s)'
+                    f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
+                    f'after {until.wall_limit:.0f} s of wall time)'
                 )
         # Stop only when the recorder has every estimate (a restarted node is matched late).
         deadline = time.monotonic() + 20.0

@@ -14,7 +14,8 @@ read them). The ``run_info`` parameter (a JSON document) is stored on ``/actives
 On SIGINT/SIGTERM the bag is closed cleanly.
 
 Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
-exclude (topics), discovery_period (s), run_info (JSON), flush_period (s).
+exclude (topics), discovery_period (s), run_info (JSON), flush_period (s), max_bag_duration (s:
+split into bag_0.mcap, bag_1.mcap, ... listed in one metadata.yaml; 0: one file).
 
 A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
 every flush writes a complete MCAP chunk and fsyncs it; ``activesurv bag reindex BAG``
@@ -45,7 +46,13 @@ from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
-from activesurv_bringup.bagio import RUN_INFO_TOPIC, BagWriter, message_class, open_writer
+from activesurv_bringup.bagio import (
+    RUN_INFO_TOPIC,
+    BagWriter,
+    SplitBagWriter,
+    message_class,
+    open_writer,
+)
 from activesurv_bringup.errors import BagError
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.node import run_node
@@ -63,6 +70,9 @@ PARAMS = (
     Param('run_info', '{}', 'JSON stored in the bag'),
     Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
     Param(
+        'max_bag_duration', 0.0, 'split the bag into files of this many s (0: one)', minimum=0.0
+    ),
+    Param(
         'thin_topics',
         ['/overhead/image_raw', '/overhead/camera_info'],
         'streams thinned to image_rate',
@@ -78,7 +88,13 @@ class RecorderNode(Node):
         output = str(g('output').value)
         if not output:
             raise BagError('recorder needs the output parameter (a new bag directory)')
-        self.bag: BagWriter | None = open_writer(Path(output))
+        split = float(g('max_bag_duration').value)
+        self.latched: set[str] = set()
+        self.bag: BagWriter | SplitBagWriter | None = (
+            SplitBagWriter(Path(output), split, self.latched)
+            if split > 0.0
+            else open_writer(Path(output))
+        )
         self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
         self.exclude = set(g('exclude').value)
         self.subscribed: dict[str, str] = {}
@@ -155,6 +171,8 @@ class RecorderNode(Node):
                 self.subscribed[topic] = type_name
                 continue
             profile, offered = self._qos(topic)
+            if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+                self.latched.add(topic)  # a split bag repeats its last message in every file
             with self._lock:
                 assert self.bag is not None
                 self.bag.connection(topic, type_name, offered)

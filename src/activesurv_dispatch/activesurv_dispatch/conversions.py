@@ -30,7 +30,11 @@ def horizon_to_demands(msg: DemandHorizon) -> list[Demand]:
         norm = float(np.linalg.norm(n))
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(cov)) and norm > 1e-9):
             continue
-        out.append(Demand(int(d.index), time_to_sec(d.demand_instant), pos, n / norm, cov))
+        out.append(
+            Demand(
+                int(d.index), time_to_sec(d.demand_instant), pos, n / norm, cov, int(d.object_id)
+            )
+        )
     return out
 
 

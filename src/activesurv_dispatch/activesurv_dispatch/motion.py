@@ -78,6 +78,28 @@ class MotionController:
             )
         return out
 
+    def park(self, initial: dict[str, Array], now: float) -> list[StageCommand]:
+        """Send every idle moving camera back to its initial pose (no object to survey)."""
+        out = []
+        for s in self.setup.sensors:
+            q = initial.get(s.camera_id)
+            if q is None or not s.moves or s.camera_id in self.holding:
+                continue
+            last = self._last.get(s.camera_id)
+            if last is not None and np.all(np.abs(q - last) <= self.deadband[s.camera_id]):
+                continue
+            self._last[s.camera_id] = np.asarray(q, dtype=np.float64).copy()
+            out.append(
+                StageCommand(
+                    s.camera_id,
+                    s.joint_names,
+                    self._last[s.camera_id].copy(),
+                    np.array([lim.max_velocity for lim in s.limits]),
+                    now,
+                )
+            )
+        return out
+
     def forget(self, camera_id: str) -> None:
         """Send this camera's next goal even if unchanged (e.g. its stage node restarted)."""
         self._last.pop(camera_id, None)
@@ -113,6 +135,18 @@ class CaptureScheduler:
                 self.requested[j] = c
                 out.append(c)
         return out
+
+    def in_flight(self) -> bool:
+        """A capture was requested whose instant has not passed yet."""
+        return any(j not in self.serviced for j in self.requested)
+
+    def prune(self, before: float) -> list[int]:
+        """Forget demands whose instant is before ``before``; returns their indices."""
+        old = [j for j, c in self.requested.items() if c.demand.time < before]
+        for j in old:
+            del self.requested[j]
+            self.serviced.discard(j)
+        return old
 
     def newly_serviced(self, now: float) -> list[Capture]:
         """Requested demands whose instant has passed (their data are being acquired)."""

@@ -83,6 +83,7 @@ class Demand:
     position: Array
     normal: Array
     covariance: Array  # 6x6 over (x, y, z, rot_x, rot_y, rot_z)
+    object_id: int = 0  # continuous surveillance: the object it surveys (0: an experiment)
 
     @property
     def target(self) -> Target:
@@ -301,7 +302,7 @@ class DispatchPlanner:
         cams = [c for c in self.sensors if c in joints and c not in self.excluded]
         horizon = sorted(
             (d for d in demands if d.index not in self._serviced and d.time > now),
-            key=lambda d: d.index,
+            key=lambda d: (d.time, d.index),  # the next instant is served first
         )
         assignments: dict[str, Assignment] = {}
         replanned = False

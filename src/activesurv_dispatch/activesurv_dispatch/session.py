@@ -26,6 +26,7 @@ from activesurv_dispatch.planner import Demand, DispatchPlanner, Plan
 from activesurv_dispatch.sensors import Setup
 
 Array = NDArray[np.float64]
+FORGET_AFTER = 60.0  # s after its instant a serviced demand is forgotten
 
 
 @dataclass(frozen=True)
@@ -114,6 +115,19 @@ class Dispatcher:
     def set_horizon(self, demands: Sequence[Demand], now: float, dropped: int = 0) -> Outputs:
         """A new rolling horizon; ``dropped`` malformed demands were left out of it."""
         self.counts['bad_demands'] += dropped
+        # Continuous surveillance: a demand of an object that vanished from the horizon before
+        # its capture request (the object left, or its point left the demand region) is
+        # withdrawn, not failed. An experiment's demands are promised for good.
+        keep = {d.index for d in demands}
+        for j, d in list(self.demands.items()):
+            if (
+                d.object_id
+                and j not in keep
+                and j not in self.scheduler.requested
+                and d.time > now
+            ):
+                del self.demands[j]
+                self.counts['withdrawn_demands'] += 1
         for d in demands:
             self.demands[d.index] = d
         self.horizon = list(demands)
@@ -133,6 +147,9 @@ class Dispatcher:
                 ('info', f'replanned demand {plan.first_index}: the prediction moved')
             )
         out.goals = self.motion.commands(plan, self.demands)
+        if not self.horizon and not self.scheduler.in_flight():
+            # No object to survey (between objects): the cameras wait at their initial poses.
+            out.goals += self.motion.park(self.setup.initial, now)
         self.counts['goals'] += len(out.goals)
         return out
 
@@ -206,6 +223,9 @@ class Dispatcher:
             self.motion.holding.difference_update(done.cameras)
             out.serviced.append(done)
             out.merge(self._replan(now))
+        # A continuous session runs for hours: demands long past are forgotten.
+        for j in self.scheduler.prune(now - FORGET_AFTER):
+            self.demands.pop(j, None)
         return out
 
     def status(self) -> dict[str, object]:

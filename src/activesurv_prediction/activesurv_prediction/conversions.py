@@ -17,7 +17,7 @@ def horizon_to_msg(
     msg.header.frame_id = frame_id
     msg.track_state = int(state.value)
     for p in predictions:
-        d = DemandPoint(index=int(p.index))
+        d = DemandPoint(index=int(p.index), object_id=int(p.object_id))
         d.demand_instant = sec_to_time(p.instant)
         pose = d.pose.pose
         pose.position.x, pose.position.y, pose.position.z = (float(v) for v in p.position)

@@ -1,9 +1,13 @@
 """Demand instants and the rolling horizon of predicted demand points (pure core).
 
-Demand instants are fixed in advance: either ``first + k * interval`` for k = 0 .. count-1, or
-an explicit list. The horizon at time ``now`` is the next ``m`` instants after ``now``, each with
-the predicted pose of the surveyed target (the side marker). The xy table only translates, so
-the side marker is the top marker plus a rigid offset, and its normal is fixed.
+In an experiment, demand instants are fixed in advance: either ``first + k * interval`` for
+k = 0 .. count-1, or an explicit list (:class:`DemandSchedule`). In continuous surveillance each
+object that crosses the workspace brings its own (:class:`DemandBook`): every ``interval``
+seconds from its entry, or the predicted instants at which it crosses lines x = X (demands by
+position, the paper's other option). The horizon at time ``now`` is the next ``m`` instants
+after ``now``, each with the predicted pose of the surveyed target (the side marker). The xy
+table only translates, so the side marker is the top marker plus a rigid offset, and its
+normal is fixed.
 """
 
 from __future__ import annotations
@@ -100,6 +104,7 @@ class DemandPrediction:
     position: Array
     normal: Array
     covariance: Array
+    object_id: int = 0
 
 
 def predict_demands(
@@ -109,17 +114,146 @@ def predict_demands(
     top_height: float,
     now: float,
     m: int,
+    object_id: int = 0,
 ) -> list[DemandPrediction]:
     """The rolling horizon: predicted target poses at the next ``m`` demand instants."""
     if predictor.last_time is None:
         return []
+    upcoming = schedule.upcoming(max(now, predictor.last_time), m)
+    return predict_points(predictor, upcoming, geometry, top_height, object_id)
+
+
+def crossing_time(
+    predictor: TargetPredictor, x: float, now: float, ahead: float = 20.0, step: float = 0.2
+) -> float | None:
+    """The first instant after ``now`` at which the predicted path crosses the line x = ``x``,
+    within ``ahead`` seconds, or None."""
+    if predictor.last_time is None:
+        return None
+    t0 = max(now, predictor.last_time)
+    f0 = float(predictor.predict(t0)[0][0]) - x
+    t = t0
+    while t < t0 + ahead:
+        t1 = t + step
+        f1 = float(predictor.predict(t1)[0][0]) - x
+        if f0 == 0.0:
+            return t
+        if f0 * f1 < 0.0:
+            return t + step * f0 / (f0 - f1)  # linear between the two samples
+        t, f0 = t1, f1
+    return None
+
+
+class DemandBook:
+    """The demands of the objects crossing the workspace one after another.
+
+    Demand indices run on across objects (each demand has one, for good); object ids are given
+    when a track is confirmed (1, 2, ...). Per object, the demand instants are either every
+    ``interval`` seconds from its entry (the first fix of its track), or the predicted instants
+    at which it crosses each of the lines x = X of ``lines_x``. A crossing instant follows the
+    prediction until it is ``freeze`` seconds away, then stays (the dispatcher must know when
+    to trigger). Only instants whose predicted point lies in ``region`` (x_min, x_max, y_min,
+    y_max; None: anywhere) are demanded: where the cameras cannot serve, nothing is promised.
+
+    Raises:
+        PredictionError: for an interval <= 0 with no lines, or bad lines/region.
+    """
+
+    def __init__(
+        self,
+        interval: float = 0.0,
+        lines_x: Sequence[float] = (),
+        region: Sequence[float] | None = None,
+        freeze: float = 1.0,
+    ) -> None:
+        lines = tuple(float(v) for v in lines_x)
+        if not all(math.isfinite(v) for v in lines) or not math.isfinite(interval):
+            raise PredictionError('demand interval and lines must be finite')
+        if not lines and not interval > 0.0:
+            raise PredictionError('continuous demands need an interval > 0 s or demand lines')
+        if region is not None and len(region) != 4:
+            raise PredictionError('demand region needs x_min, x_max, y_min, y_max')
+        self.interval = float(interval)
+        self.lines = lines
+        self.region = None if region is None else tuple(float(v) for v in region)
+        self.freeze = freeze
+        self.object_id = 0
+        self.objects = 0
+        self.entered: float | None = None
+        self._next_index = 0
+        self._index: dict[tuple[str, float], int] = {}
+        self._frozen: dict[tuple[str, float], float] = {}
+
+    def start(self, entered: float) -> int:
+        """A new object was confirmed; its track began at ``entered``. Returns its id."""
+        self.objects += 1
+        self.object_id = self.objects
+        self.entered = entered
+        self._index.clear()
+        self._frozen.clear()
+        return self.object_id
+
+    def end(self) -> None:
+        """The object left (or was lost): its demands still to come are dropped."""
+        self.object_id = 0
+        self.entered = None
+        self._index.clear()
+        self._frozen.clear()
+
+    def _inside(self, xy: Array) -> bool:
+        if self.region is None:
+            return True
+        x0, x1, y0, y1 = self.region
+        return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
+
+    def upcoming(self, predictor: TargetPredictor, now: float, m: int) -> list[tuple[int, float]]:
+        """(index, instant) of the current object's next ``m`` demands after ``now``."""
+        if self.object_id == 0 or self.entered is None or predictor.last_time is None:
+            return []
+        cands: list[tuple[float, tuple[str, float]]] = []
+        if self.interval > 0.0:
+            k = max(1, math.floor((now - self.entered) / self.interval) + 1)
+            for n in range(k, k + 4 * m):
+                cands.append((self.entered + n * self.interval, ('t', float(n))))
+        for x in self.lines:
+            key = ('x', x)
+            t = self._frozen.get(key)
+            if t is None:
+                t = crossing_time(predictor, x, now)
+                if t is not None and t - now <= self.freeze:
+                    self._frozen[key] = t
+            if t is not None:
+                cands.append((t, key))
+        out: list[tuple[int, float]] = []
+        for t, key in sorted(cands):
+            if t <= now or len(out) >= m:
+                continue
+            # Indices follow the instants (the dispatcher serves the lowest index first), so
+            # an instant gets one when it comes up, in the region or not; only those whose
+            # predicted point is in the region are demanded (now).
+            if key not in self._index:
+                self._index[key] = self._next_index
+                self._next_index += 1
+            if self._inside(predictor.predict(t)[0]):
+                out.append((self._index[key], t))
+        return out
+
+
+def predict_points(
+    predictor: TargetPredictor,
+    upcoming: Sequence[tuple[int, float]],
+    geometry: TargetGeometry,
+    top_height: float,
+    object_id: int = 0,
+) -> list[DemandPrediction]:
+    """Predicted target poses at the given (index, instant) demands."""
     out = []
-    for j, t in schedule.upcoming(max(now, predictor.last_time), m):
+    for j, t in upcoming:
         mean, cov = predictor.predict(t)
         pos = np.array([mean[0], mean[1], top_height]) + geometry.offset
         C = np.zeros((6, 6))
         C[:2, :2] = cov
         C[2, 2] = geometry.z_std**2
         C[3:, 3:] = np.eye(3) * geometry.normal_std**2
-        out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C))
+        out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C, object_id))
     return out

@@ -23,7 +23,13 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import DemandHorizon
 from activesurv_prediction.conversions import horizon_to_msg
-from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
+from activesurv_prediction.demands import (
+    DemandBook,
+    DemandSchedule,
+    TargetGeometry,
+    predict_demands,
+    predict_points,
+)
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.predictor import TargetPredictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace
@@ -43,6 +49,21 @@ PARAMS = (
     Param('service_interval', 2.0, 'between demands (s)', above=0.0),
     Param('demand_count', 10, 'number of demand instants', minimum=1),
     Param('demand_times', Parameter.Type.DOUBLE_ARRAY, 'explicit instants (s); unset: above'),
+    Param(
+        'demand_mode',
+        'schedule',
+        'schedule: the fixed instants above; interval or lines: per object (continuous)',
+        choices=('schedule', 'interval', 'lines'),
+    ),
+    Param('demand_interval', 2.0, "interval mode: s between an object's demands", above=0.0),
+    Param('demand_lines', [0.25], 'lines mode: x (m) of the lines whose crossings are demands'),
+    Param(
+        'demand_region',
+        [0.0, 0.5, 0.0, 0.2],
+        'continuous: where demand points may fall (x_min, x_max, y_min, y_max)',
+        check=_workspace_problem,
+    ),
+    Param('demand_freeze', 1.0, 'lines mode: s before a crossing when it stops moving', above=0.0),
     Param('horizon', 5, 'demands on the rolling horizon (m)', minimum=1),
     Param('measurement_std', 0.5e-3, 'overhead fix std (m)', above=0.0),
     Param('jerk_std', 2e-4, 'process noise (m/s^3)', above=0.0),
@@ -65,7 +86,9 @@ class PredictorNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('predictor', **kwargs)
         declare(self, PARAMS)
-        v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
+        v = {p.name: self.get_parameter(p.name).value for p in PARAMS if p.name != 'demand_times'}
+        times_p = self.get_parameter_or('demand_times', Parameter('demand_times', value=[]))
+        v['demand_times'] = times_p.value if times_p.type_ != Parameter.Type.NOT_SET else []
         times = v['demand_times']
         self.schedule = (
             DemandSchedule.explicit(times)
@@ -74,6 +97,18 @@ class PredictorNode(Node):
                 float(v['first_demand']), float(v['service_interval']), int(v['demand_count'])
             )
         )
+        mode = str(v['demand_mode'])
+        self.book = (
+            None
+            if mode == 'schedule'
+            else DemandBook(
+                float(v['demand_interval']) if mode == 'interval' else 0.0,
+                [float(x) for x in v['demand_lines']] if mode == 'lines' else (),
+                [float(x) for x in v['demand_region']],
+                float(v['demand_freeze']),
+            )
+        )
+        self._book_track = -1  # the track the book's current object belongs to
         self.geometry = TargetGeometry.create(v['side_marker_offset'], v['side_marker_normal'])
         self.tracker = Tracker(
             TargetPredictor(
@@ -125,10 +160,34 @@ class PredictorNode(Node):
             self._innovations.append(result.mahalanobis2)
         self._publish_horizon(t)
 
+    def _continuous(self, now: float) -> list[Any]:
+        """Continuous mode: an object id per confirmed track, and its demands."""
+        assert self.book is not None
+        t = self.tracker
+        if self.book.object_id and (
+            t.state is not TrackState.CONFIRMED or t.tracks_started != self._book_track
+        ):
+            self.get_logger().info(f'object {self.book.object_id} left; its demands end')
+            self.book.end()
+        if t.state is TrackState.CONFIRMED and not self.book.object_id:
+            oid = self.book.start(t.started_at if t.started_at is not None else now)
+            self._book_track = t.tracks_started
+            self.get_logger().info(
+                f'object {oid} confirmed (track started {self.book.entered:.2f} s)'
+            )
+        if not self.book.object_id:
+            return []
+        upcoming = self.book.upcoming(t.predictor, now, self.horizon)
+        return predict_points(
+            t.predictor, upcoming, self.geometry, self.marker_height, self.book.object_id
+        )
+
     def _publish_horizon(self, now: float) -> None:
         state = self.tracker.state
         preds = []
-        if state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
+        if self.book is not None:
+            preds = self._continuous(now)
+        elif state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
             preds = predict_demands(
                 self.tracker.predictor,
                 self.schedule,

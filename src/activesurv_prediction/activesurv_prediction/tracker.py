@@ -76,6 +76,7 @@ class Tracker:
         self.exit_margin = exit_margin
         self.state = TrackState.NONE
         self.last_seen: float | None = None
+        self.started_at: float | None = None  # the first fix of the current track
         self.tracks_started = 0
 
     def update(self, t: float, xy: ArrayLike) -> UpdateResult | None:
@@ -89,6 +90,7 @@ class Tracker:
             self.predictor.reset()
             self.state = TrackState.TENTATIVE
             self.tracks_started += 1
+            self.started_at = t
         elif not self.workspace.contains(z, self.exit_margin):
             self.lose()
             return None

@@ -24,6 +24,8 @@ def test_fixes_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., b
             Parameter('demand_times', value=[10.0, 12.0, 14.0]),
             Parameter('confirm_fixes', value=5),
             Parameter('horizon', value=2),
+            # The fixes carry made-up stamps (1-4 s) while the node runs on the wall clock.
+            Parameter('lost_timeout', value=1e10),
         ]
     )
     peer = rclpy_context.create_node('predictor_test_peer')

@@ -17,5 +17,5 @@ def object_state_msg(state: ObjectState, stamp: Time, frame_id: str) -> ObjectSt
     n = state.side_normal
     msg.side_normal.x, msg.side_normal.y, msg.side_normal.z = (float(v) for v in n)
     msg.velocity.x, msg.velocity.y, msg.velocity.z = (float(v) for v in state.velocity)
-    msg.in_workspace = True
+    msg.in_workspace = bool(state.present)
     return msg

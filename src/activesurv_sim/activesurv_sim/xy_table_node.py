@@ -13,9 +13,11 @@ Subscribes:
         timers see the instant, without waiting for the next regular tick. On the request it
         also publishes ``sim/planned_object_state``, the state its program will reach then
         (simulated cameras render ahead with it; see ``sim_camera``).
-Parameters: path_type (parabola, line, csv), path_points, csv_file, speed, acceleration,
-    start_time (s of simulated time before the object starts), top_height, side_offset,
-    side_normal, publish_rate, publish_clock, real_time_factor, frame_id.
+Parameters: path_type (parabola, line, csv, or stream: objects one after another, see
+    ``activesurv_sim.stream``), path_points, csv_file, speed, acceleration, start_time (s of
+    simulated time before the object starts; for a stream, the first entry), stream_seed,
+    arrival_interval, path_kinds, top_height, side_offset, side_normal, publish_rate,
+    publish_clock, real_time_factor, frame_id.
 """
 
 from __future__ import annotations
@@ -36,11 +38,12 @@ from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.stream import PATH_KINDS, ObjectStream
 from activesurv_sim.xytable import ObjectModel, XYTable, named_path
 from activesurv_stages.errors import ConfigError, StageError
 
 PARAMS = (
-    Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv')),
+    Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv', 'stream')),
     Param(
         'path_points',
         [0.17, 0.06, 0.25, 0.12, 0.33, 0.06],
@@ -64,6 +67,9 @@ PARAMS = (
         minimum=0,
     ),
     Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
+    Param('stream_seed', 0, "stream: seed of the objects' paths"),
+    Param('arrival_interval', 30.0, "stream: s from one object's entry to the next", above=0.0),
+    Param('path_kinds', list(PATH_KINDS), 'stream: path kinds to draw from'),
     Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
 )
 
@@ -74,13 +80,6 @@ class XYTableNode(Node):
         declare(self, PARAMS)
 
         g = self.get_parameter
-        path = named_path(
-            str(g('path_type').value),
-            list(g('path_points').value),
-            float(g('speed').value),
-            float(g('acceleration').value),
-            str(g('csv_file').value),
-        )
         off = [float(v) for v in g('side_offset').value]
         nrm = [float(v) for v in g('side_normal').value]
         if len(off) != 3 or len(nrm) != 3:
@@ -88,7 +87,27 @@ class XYTableNode(Node):
         model = ObjectModel(
             float(g('top_height').value), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2])
         )
-        self.table = XYTable(path, float(g('start_time').value), model)
+        speed, accel = float(g('speed').value), float(g('acceleration').value)
+        self.table: XYTable | ObjectStream
+        if g('path_type').value == 'stream':
+            self.table = ObjectStream(
+                int(g('stream_seed').value),
+                float(g('arrival_interval').value),
+                float(g('start_time').value),
+                [str(k) for k in g('path_kinds').value],
+                speed=speed,
+                acceleration=accel,
+                model=model,
+            )
+        else:
+            path = named_path(
+                str(g('path_type').value),
+                list(g('path_points').value),
+                speed,
+                accel,
+                str(g('csv_file').value),
+            )
+            self.table = XYTable(path, float(g('start_time').value), model)
         self.publish_clock = bool(g('publish_clock').value)
         self.rtf = float(g('real_time_factor').value)
         self.frame_id = str(g('frame_id').value)
@@ -115,10 +134,13 @@ class XYTableNode(Node):
         self.create_timer(
             1.0 / (rate * self.rtf) if self.publish_clock else 1.0 / rate, self._on_tick
         )
-        self.get_logger().info(
+        what = (
             f'path of {self.table.path.duration:.1f} s from t={self.table.start_time:.1f} s'
-            + (f', owning /clock at {self.rtf:g}x real time' if self.publish_clock else '')
+            if isinstance(self.table, XYTable)
+            else f'a stream of objects, one every {self.table.arrival_interval:g} s or more'
         )
+        clock = f', owning /clock at {self.rtf:g}x real time' if self.publish_clock else ''
+        self.get_logger().info(what + clock)
 
     def sim_time(self) -> float:
         if self.publish_clock:

@@ -196,6 +196,7 @@ class ObjectState:
     side_normal: Array
     velocity: Array
     moving: bool
+    present: bool = True  # False: no object on the table (a stream between two objects)
 
 
 class XYTable:

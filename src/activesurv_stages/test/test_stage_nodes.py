@@ -111,7 +111,8 @@ def test_xy_table_and_sim_stage_on_simulated_time(
         NodeSpec(
             'xy_table',
             'activesurv_sim.xy_table_node',
-            parameters={'real_time_factor': 2.0, 'start_time': 0.5},
+            # Simulated time starts when this test's peer listens (discovery may be slow).
+            parameters={'real_time_factor': 2.0, 'start_time': 0.5, 'wait_for_subscribers': 1},
         ),
         NodeSpec(
             'sim_stage',

@@ -1,0 +1,243 @@
+"""A stream of objects crossing the xy table one after another (pure core).
+
+Continuous surveillance watches object after object, as a production cell does: each object
+enters at one end of the table, crosses it on a path of its own and leaves at the other end;
+the next enters ``arrival_interval`` seconds after the previous one entered, but never before
+the previous one has left plus ``gap`` seconds (the table carries one object at a time).
+
+Paths are drawn from a seeded generator, each of one kind (:data:`PATH_KINDS`): straight lines,
+parabolas, s-curves, circular arcs, lines with a stop of 1-6 s, lines with a speed step (8
+mm/s, then the full speed), reversals (forward, back 4-10 cm, forward again) and random smooth
+paths. All stay on the table and within ``speed`` (20 mm/s, the paper's object speed), with
+acceleration ramps and a standstill at every stop and turn. While no object is on the table
+its state is parked far outside every camera's view (``in_workspace`` false).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from activesurv_sim.xytable import TABLE_RANGE, ObjectModel, ObjectState, TimedPath, check_in_table
+from activesurv_stages.errors import ConfigError
+
+Array = NDArray[np.float64]
+
+PATH_KINDS = (
+    'line',
+    'parabola',
+    's_curve',
+    'arc',
+    'stop',
+    'speed_change',
+    'reversal',
+    'smooth',
+)
+PARKED = np.array([100.0, 100.0])  # where an absent object is: in no camera's view
+_MARGIN = 0.015  # m from the table's edges
+_X0, _X1 = TABLE_RANGE[0][0] + _MARGIN, TABLE_RANGE[0][1] - _MARGIN
+_Y0, _Y1 = TABLE_RANGE[1][0] + 0.03, TABLE_RANGE[1][1] - 0.03
+
+
+def travel(
+    points: Sequence[Sequence[float]] | Array,
+    speeds: Sequence[float],
+    stops: dict[int, float],
+    acceleration: float,
+    dt: float = 0.01,
+) -> TimedPath:
+    """Time a polyline: segment i at up to ``speeds[i]``, coming to rest and waiting
+    ``stops[i]`` seconds at vertex i (its start is vertex 0); at rest at both ends.
+
+    Raises:
+        ConfigError: for a degenerate polyline or non-positive speeds/acceleration.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        raise ConfigError('a path needs at least two finite (x, y) points')
+    if len(speeds) != len(pts) - 1 or min(speeds) <= 0.0 or acceleration <= 0.0:
+        raise ConfigError('one positive speed per segment and an acceleration > 0 are needed')
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s_vertex = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(s_vertex[-1])
+    if total <= 0.0:
+        raise ConfigError('the path has zero length')
+    rest = sorted(float(s_vertex[i]) for i in stops if 0 < i < len(pts) - 1) + [total]
+    dwell = {float(s_vertex[i]): w for i, w in stops.items() if 0 < i < len(pts) - 1}
+    t, s, v = 0.0, 0.0, 0.0
+    ts, ss = [0.0], [0.0]
+    while s < total - 1e-9:
+        i = min(int(np.searchsorted(s_vertex, s, side='right')) - 1, len(speeds) - 1)
+        nxt = next(r for r in rest if r > s + 1e-9)
+        # Never faster than allows stopping at the next rest point.
+        v_cap = min(speeds[i], math.sqrt(max(2.0 * acceleration * (nxt - s), 0.0)))
+        v = min(v + acceleration * dt, v_cap) if v < v_cap else max(v - acceleration * dt, v_cap)
+        v = max(v, 1e-4)  # creep the last micrometres
+        s = min(s + v * dt, nxt)
+        t += dt
+        ts.append(t)
+        ss.append(s)
+        if s >= nxt - 1e-9 and nxt in dwell:
+            v = 0.0
+            t += dwell.pop(nxt)
+            ts.append(t)
+            ss.append(s)
+    arc = np.asarray(ss)
+    xy = np.column_stack(
+        [np.interp(arc, s_vertex, pts[:, 0]), np.interp(arc, s_vertex, pts[:, 1])]
+    )
+    check_in_table(xy, 'the generated path')
+    return TimedPath(np.asarray(ts), xy)
+
+
+def random_path(
+    kind: str, rng: np.random.Generator, speed: float = 0.02, acceleration: float = 0.02
+) -> TimedPath:
+    """One crossing of the table of the given kind, drawn from ``rng``.
+
+    Raises:
+        ConfigError: for an unknown kind.
+    """
+    if kind not in PATH_KINDS:
+        raise ConfigError(f'unknown path kind {kind!r}; use one of {PATH_KINDS}')
+    left_to_right = bool(rng.random() < 0.5)
+    xa, xb = (_X0, _X1) if left_to_right else (_X1, _X0)
+    ya, yb = rng.uniform(_Y0, _Y1, size=2)
+    xs = np.linspace(xa, xb, 60)
+    u = (xs - xa) / (xb - xa)  # 0 .. 1 along the crossing
+    ys = ya + (yb - ya) * u
+    speeds = None
+    stops: dict[int, float] = {}
+    if kind == 'line':
+        pts = np.column_stack([[xa, xb], [ya, yb]])
+    elif kind in ('parabola', 'arc'):
+        ym = 0.5 * (_Y0 + _Y1)
+        bulge = rng.uniform(0.04, 0.07) * rng.choice([-1.0, 1.0])
+        ya = yb = ym - bulge / 2
+        if kind == 'parabola':
+            ys = ya + bulge * 4.0 * u * (1.0 - u)
+        else:  # a circular arc through both ends with the same sagitta
+            half = abs(xb - xa) / 2
+            r = (half**2 + bulge**2) / (2 * abs(bulge))
+            dx = xs - (xa + xb) / 2
+            ys = ya + math.copysign(1.0, bulge) * (np.sqrt(r**2 - dx**2) - (r - abs(bulge)))
+        pts = np.column_stack([xs, ys])
+    elif kind == 's_curve':
+        amp = rng.uniform(0.02, 0.045)
+        ym = 0.5 * (_Y0 + _Y1)
+        pts = np.column_stack([xs, ym + amp * np.sin(2.0 * math.pi * u)])
+    elif kind == 'smooth':
+        knots = rng.uniform(_Y0 + 0.01, _Y1 - 0.01, size=5)
+        ys = np.interp(u, np.linspace(0.0, 1.0, 5), knots)
+        ys = np.convolve(np.pad(ys, 7, mode='edge'), np.ones(15) / 15, mode='valid')
+        pts = np.column_stack([xs, ys])
+    elif kind == 'stop':
+        f = rng.uniform(0.3, 0.7)
+        pts = np.column_stack([[xa, xa + f * (xb - xa), xb], [ya, ya + f * (yb - ya), yb]])
+        stops = {1: float(rng.uniform(1.0, 6.0))}
+    elif kind == 'speed_change':
+        f = rng.uniform(0.3, 0.6)
+        pts = np.column_stack([[xa, xa + f * (xb - xa), xb], [ya, ya + f * (yb - ya), yb]])
+        speeds = [min(0.008, speed), speed]
+    else:  # reversal
+        f = rng.uniform(0.4, 0.65)
+        back = rng.uniform(0.04, 0.10) * math.copysign(1.0, xb - xa)
+        xm = xa + f * (xb - xa)
+        ym = ya + f * (yb - ya)
+        pts = np.column_stack([[xa, xm, xm - back, xb], [ya, ym, ym, yb]])
+        stops = {1: 0.0, 2: 0.0}
+    n_seg = len(pts) - 1
+    return travel(pts, speeds or [speed] * n_seg, stops, acceleration)
+
+
+@dataclass(frozen=True)
+class ObjectPass:
+    """One object's crossing: its truth id, path kind, entry and exit (simulated s)."""
+
+    id: int
+    kind: str
+    entered: float
+    path: TimedPath
+
+    @property
+    def left(self) -> float:
+        return self.entered + self.path.duration
+
+
+class ObjectStream:
+    """Objects entering one after another from ``first_entry`` on, paths drawn from ``seed``.
+
+    Args:
+        seed: seeds the path kinds and shapes (the same seed, the same stream).
+        arrival_interval: s from one object's entry to the next's (at the earliest).
+        first_entry: simulated s at which the first object enters.
+        kinds: path kinds to draw from (default all of :data:`PATH_KINDS`).
+        gap: s the table stays empty between two objects at least.
+        model: the markers relative to the carriage.
+    """
+
+    def __init__(
+        self,
+        seed: int,
+        arrival_interval: float = 30.0,
+        first_entry: float = 1.0,
+        kinds: Sequence[str] = PATH_KINDS,
+        gap: float = 2.0,
+        speed: float = 0.02,
+        acceleration: float = 0.02,
+        model: ObjectModel | None = None,
+    ) -> None:
+        if not (math.isfinite(arrival_interval) and arrival_interval > 0.0 and gap >= 0.0):
+            raise ConfigError('arrival_interval must be > 0 s and gap >= 0 s')
+        bad = [k for k in kinds if k not in PATH_KINDS]
+        if bad or not kinds:
+            raise ConfigError(f'path kinds must be among {PATH_KINDS}, got {list(kinds)}')
+        self.rng = np.random.default_rng(seed)
+        self.arrival_interval = arrival_interval
+        self.kinds = tuple(kinds)
+        self.gap = gap
+        self.speed = speed
+        self.acceleration = acceleration
+        self.model = model or ObjectModel()
+        n = np.asarray(self.model.side_normal, dtype=np.float64)
+        self._normal = n / np.linalg.norm(n)
+        self.passes: list[ObjectPass] = []
+        self._next_entry = first_entry
+
+    def _extend(self, t: float) -> None:
+        while not self.passes or self.passes[-1].entered <= t:
+            kind = str(self.rng.choice(self.kinds))
+            path = random_path(kind, self.rng, self.speed, self.acceleration)
+            p = ObjectPass(len(self.passes) + 1, kind, self._next_entry, path)
+            self.passes.append(p)
+            self._next_entry = max(p.entered + self.arrival_interval, p.left + self.gap)
+
+    def pass_at(self, t: float) -> ObjectPass | None:
+        """The object on the table at ``t``, if any."""
+        self._extend(t)
+        for p in reversed(self.passes):
+            if p.entered <= t:
+                return p if t <= p.left else None
+        return None
+
+    def state(self, t: float) -> ObjectState:
+        """The object's state at ``t`` (parked out of view, not moving, when there is none)."""
+        p = self.pass_at(t)
+        if p is None:
+            xy, v = PARKED, np.zeros(2)
+        else:
+            tau = t - p.entered
+            xy, v = p.path.position(tau), p.path.velocity(tau)
+        top = np.array([xy[0], xy[1], self.model.top_height])
+        return ObjectState(
+            top,
+            top + np.asarray(self.model.side_offset),
+            self._normal.copy(),
+            np.array([v[0], v[1], 0.0]),
+            p is not None and 0.0 < t - p.entered < p.path.duration,
+            p is not None,
+        )

@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -307,3 +307,44 @@ def run_info(path: Path) -> dict[str, Any]:
     for m in read_bag(path, {RUN_INFO_TOPIC}):
         return dict(json.loads(m.msg.data))
     raise BagError(f'bag {path} has no {RUN_INFO_TOPIC} message (not an activesurv run?)')
+
+
+def recording_qos(publishers: Sequence[Any]) -> tuple[Any, Any]:
+    """How to subscribe to a topic with these publishers (rclpy ``TopicEndpointInfo``), and the
+    QoS to note in the bag: reliable only if they all are, transient local only if they all
+    are (so latched blackboard topics arrive too)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    reliable = bool(publishers) and all(
+        i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in publishers
+    )
+    latched = bool(publishers) and all(
+        i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in publishers
+    )
+    profile = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=200,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+    zero = QosTime(0, 0)
+    offered = Qos(
+        QosHistory.KEEP_LAST,
+        1 if latched else 10,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+        zero,
+        zero,
+        QosLiveliness.AUTOMATIC,
+        zero,
+        False,
+    )
+    return profile, offered

@@ -310,7 +310,12 @@ def report(path: Path) -> Path:
     from activesurv_bringup.report import summary_table
 
     docs, out = make_report(path)
-    print(summary_table(docs))
+    if docs and all(d.get('mode') == 'surveil' for d in docs):
+        from activesurv_bringup.surveil import session_table
+
+        print('\n\n'.join(session_table(d) for d in docs))
+    else:
+        print(summary_table(docs))
     print(f'\nreport: {out}')
     return out
 

@@ -104,10 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     rclpy.init(args=args[1:], signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Any] = []
+    errors: tuple[type[Exception], ...] = (*STARTUP_ERRORS, SimError, StageError, BagError)
     for m in members:
         try:
             nodes.append(build_node(m))
-        except (*STARTUP_ERRORS, SimError, StageError, BagError) as exc:
+        except errors as exc:
             print(f'{m.name}: error: {one_line(exc)}', file=sys.stderr)
             for n in nodes:
                 n.destroy_node()

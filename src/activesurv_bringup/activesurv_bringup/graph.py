@@ -509,7 +509,12 @@ def _run(
             launcher.add(specs[-1:])
         cpu0, wall0 = _cpu(launcher), time.monotonic()
         wall_limit = time.monotonic() + until.wall_limit
+        samples: list[dict[str, Any]] = []
+        next_sample = wall0
         while not until.done(monitor):
+            if time.monotonic() >= next_sample and isinstance(launcher, Launcher):
+                next_sample += RESOURCE_PERIOD
+                samples.append(_resources(launcher, wall0, monitor.sim_time))
             if isinstance(launcher, Launcher):
                 _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
             launcher.check()
@@ -531,6 +536,8 @@ def _run(
             monitor.spin(0.25)
         monitor.spin(0.5)  # the recorder gets the last messages
         _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
+        if samples:
+            (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
     finally:
         monitor.close()
         # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
@@ -538,6 +545,19 @@ def _run(
         if owns_rclpy:
             rclpy.try_shutdown()
     return bag
+
+
+RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU
+
+
+def _resources(launcher: Launcher, wall0: float, sim_time: float) -> dict[str, Any]:
+    """One sample of ``resources.json``: wall and simulated time, RSS (MB) and CPU (s)."""
+    return {
+        'wall': round(time.monotonic() - wall0, 2),
+        'sim': round(sim_time, 2),
+        'rss_mb': {k: round(v / 2**20, 2) for k, v in launcher.rss_bytes().items()},
+        'cpu_s': {k: round(v, 2) for k, v in launcher.cpu_seconds().items()},
+    }
 
 
 def _cpu(launcher: Launcher | Composition) -> dict[str, float]:

@@ -65,6 +65,17 @@ def process_cpu_seconds(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def process_rss_bytes(pid: int) -> int | None:
+    """Resident set size of a process (Linux ``/proc``), or None if it is gone."""
+    try:
+        for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
 CONTAINER_MODULE = 'activesurv_bringup.container'
 
 
@@ -241,6 +252,14 @@ class Launcher:
             fqn: t
             for fqn, proc in self.processes.items()
             if proc.alive() and (t := process_cpu_seconds(proc.process.pid)) is not None
+        }
+
+    def rss_bytes(self) -> dict[str, int]:
+        """Resident memory of each running node process."""
+        return {
+            fqn: b
+            for fqn, proc in self.processes.items()
+            if proc.alive() and (b := process_rss_bytes(proc.process.pid)) is not None
         }
 
     def wait_alive(self, seconds: float) -> None:

@@ -33,16 +33,8 @@ from typing import Any
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
-from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
@@ -52,6 +44,7 @@ from activesurv_bringup.bagio import (
     SplitBagWriter,
     message_class,
     open_writer,
+    recording_qos,
 )
 from activesurv_bringup.errors import BagError
 from activesurv_common.ros import qos, topics
@@ -88,11 +81,10 @@ class RecorderNode(Node):
         output = str(g('output').value)
         if not output:
             raise BagError('recorder needs the output parameter (a new bag directory)')
-        split = float(g('max_bag_duration').value)
-        self.latched: set[str] = set()
+        split, self.latched = float(g('max_bag_duration').value), set[str]()
         self.bag: BagWriter | SplitBagWriter | None = (
             SplitBagWriter(Path(output), split, self.latched)
-            if split > 0.0
+            if split
             else open_writer(Path(output))
         )
         self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
@@ -131,33 +123,8 @@ class RecorderNode(Node):
         # Orchestrators wait on this before stopping the graph (nothing left unrecorded).
         self._status_pub.publish(String(data=json.dumps(counts)))
 
-    def _qos(self, topic: str) -> tuple[QoSProfile, Qos]:
-        infos = self.get_publishers_info_by_topic(topic)
-        reliable = bool(infos) and all(
-            i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos
-        )
-        latched = bool(infos) and all(
-            i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
-        )
-        profile = QoSProfile(
-            history=HistoryPolicy.KEEP_LAST,
-            depth=200,
-            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-        )
-        zero = QosTime(0, 0)
-        offered = Qos(
-            QosHistory.KEEP_LAST,
-            1 if latched else 10,
-            QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
-            QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-            zero,
-            zero,
-            QosLiveliness.AUTOMATIC,
-            zero,
-            False,
-        )
-        return profile, offered
+    def _qos(self, topic: str) -> tuple[QoSProfile, Any]:
+        return recording_qos(self.get_publishers_info_by_topic(topic))
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():

@@ -144,7 +144,12 @@ def load_run(run: Path, refresh: bool = True) -> dict[str, Any]:
     """The results of a run: from its bag (rewriting results.json) or its results.json."""
     bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
     if bag.is_dir() and refresh:
-        doc = evaluate_bag(bag)
+        if run_info(bag).get('mode') == 'surveil':
+            from activesurv_bringup.surveil import evaluate_surveil
+
+            doc = evaluate_surveil(bag)
+        else:
+            doc = evaluate_bag(bag)
         out = run.parent if bag == run else run
         write_results(out / 'results.json', doc)
         return doc
@@ -264,4 +269,11 @@ def report(path: Path) -> tuple[list[dict[str, Any]], Path]:
     docs = [load_run(r) for r in runs]
     # A bag's report goes next to it (its run directory); otherwise into the given directory.
     out = path.parent if (path / 'metadata.yaml').is_file() else path
-    return docs, write_report(docs, out)
+    sessions = [(r, d) for r, d in zip(runs, docs, strict=True) if d.get('mode') == 'surveil']
+    experiments = [d for d in docs if d.get('mode') != 'surveil']
+    if sessions and not experiments:
+        from activesurv_bringup.surveil import write_surveil_report
+
+        paths = [write_surveil_report(d, r if r.name != 'bag' else r.parent) for r, d in sessions]
+        return docs, paths[-1]
+    return experiments, write_report(experiments, out)

@@ -139,7 +139,7 @@ def _decompress(data: bytes, compression: str, size: int) -> bytes:
 
             raw = zstd.decompress(data)
         except ImportError:
-            import zstandard  # type: ignore[import-not-found]
+            import zstandard
 
             raw = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
     elif compression == 'lz4':

@@ -363,3 +363,82 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             'latency_median_ms': 1e3 * statistics.median(lat) if lat else None,
         },
     }
+
+
+def session_table(doc: dict[str, Any]) -> str:
+    """One line per object: path kind, entry/exit, demands, ok, median errors and latency."""
+    head = (
+        f'{"object":>6} {"path":>13} {"entered [s]":>11} {"left [s]":>9} {"demands":>7} '
+        f'{"ok":>4} {"pos err [mm]":>12} {"latency [ms]":>12}'
+    )
+    lines = [head, '-' * len(head)]
+    rows = list(doc['objects']) + [{'id': None}]
+    for o in rows:
+        ds = [d for d in doc['demands'] if o['id'] is None or d['object'] == o['id']]
+        ok = [d for d in ds if d['status'] == 'ok']
+        err = [d['position_error'] for d in ok if d['position_error'] is not None]
+        lat = [d['latency'] for d in ds if d.get('latency') is not None]
+
+        def num(v: float | None, w: int, scale: float = 1.0, fmt: str = '.3f') -> str:
+            return f'{"-":>{w}}' if v is None else f'{v * scale:>{w}{fmt}}'
+
+        med_err = statistics.median(err) if err else None
+        med_lat = statistics.median(lat) if lat else None
+        if o['id'] is None:
+            lines.append('-' * len(head))
+            name, kind, entered, left = 'all', '', None, None
+        else:
+            name, kind, entered, left = str(o['id']), str(o['path_kind']), o['entered'], o['left']
+        lines.append(
+            f'{name:>6} {kind:>13} {num(entered, 11, fmt=".1f")} {num(left, 9, fmt=".1f")} '
+            f'{len(ds):>7} {len(ok):>4} {num(med_err, 12, 1e3)} {num(med_lat, 12, 1e3, ".0f")}'
+        )
+    return '\n'.join(lines)
+
+
+def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
+    """``report.md`` and ``session.png`` (error and latency of every demand over time)."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for o in doc['objects']:
+        ds = [d for d in doc['demands'] if d['object'] == o['id']]
+        ts = [d['t'] for d in ds]
+        err = [np.nan if d['position_error'] is None else 1e3 * d['position_error'] for d in ds]
+        lat = [np.nan if d.get('latency') is None else 1e3 * d['latency'] for d in ds]
+        label = f'object {o["id"]} ({o["path_kind"]})'
+        axes[0].plot(ts, err, 'o', ms=4, label=label)
+        axes[1].plot(ts, lat, 'o', ms=4)
+    axes[0].set_ylabel('position error [mm]')
+    axes[1].set_ylabel('latency [ms]')
+    axes[1].set_xlabel('simulated time [s]')
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if doc['objects']:
+        axes[0].legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    png = out_dir / 'session.png'
+    fig.savefig(png, dpi=90)
+    plt.close(fig)
+    s = doc['summary']
+    lines = [
+        '# activesurv continuous surveillance',
+        '',
+        f'{s["objects"]} objects, {s["demands"]} demands ({doc["demand_mode"]}), '
+        f'{s["ok"]} ok, over {doc["simulated_seconds"]:.0f} s of simulated time; '
+        f'system {doc["system"]}, seed {doc["seed"]}. Failed demands:',
+        '',
+    ]
+    failed = [d for d in doc['demands'] if d['status'] != 'ok']
+    lines += [
+        f'- demand {d["index"]} (object {d["object"]}): {d["status"]}: {d["reason"]}'
+        for d in failed
+    ] or ['- none']
+    lines += ['', '```', session_table(doc), '```', '', f'![session]({png.name})', '']
+    path = out_dir / 'report.md'
+    path.write_text('\n'.join(lines))
+    return path

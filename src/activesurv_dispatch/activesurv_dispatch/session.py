@@ -149,7 +149,10 @@ class Dispatcher:
         out.goals = self.motion.commands(plan, self.demands)
         if not self.horizon and not self.scheduler.in_flight():
             # No object to survey (between objects): the cameras wait at their initial poses.
-            out.goals += self.motion.park(self.setup.initial, now)
+            alive = {c: q for c, q in self.setup.initial.items() if c in self.joints}
+            out.goals += self.motion.park(
+                {c: q for c, q in alive.items() if c not in self.planner.excluded}, now
+            )
         self.counts['goals'] += len(out.goals)
         return out
 

@@ -112,7 +112,7 @@ class CaptureCore(Generic[F]):
 
         img = np.full((480, 640), 25, np.uint8)
         cv2.ellipse(img, (320, 240), (110, 80), 20.0, 0.0, 360.0, 230, -1, cv2.LINE_AA)
-        img = cv2.GaussianBlur(img, (0, 0), 0.8)
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), 0.8), dtype=np.uint8)
         cam = self.camera or dynamic_camera(self.config.camera_id)
         measure_marker(img, cam, self.config.marker_radius, np.array([0.0, 0.0, -1.0]))
 

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.predictor import TargetPredictor
+from activesurv_prediction.tracker import Tracker, TrackState
 
 Array = NDArray[np.float64]
 
@@ -257,3 +258,73 @@ def predict_points(
         C[3:, 3:] = np.eye(3) * geometry.normal_std**2
         out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C, object_id))
     return out
+
+
+class ObjectDemands:
+    """Continuous mode: an object id for each confirmed track, and that object's demands.
+
+    The object ends when its track is lost or replaced by a new one (its demands still to come
+    are dropped); the next confirmed track is the next object.
+    """
+
+    def __init__(self, book: DemandBook) -> None:
+        self.book = book
+        self._track = -1  # which of the tracker's tracks the current object is
+
+    def update(
+        self,
+        tracker: Tracker,
+        now: float,
+        m: int,
+        geometry: TargetGeometry,
+        top_height: float,
+    ) -> tuple[list[DemandPrediction], list[str]]:
+        """The current object's next ``m`` demand points, and log lines of what changed."""
+        events = []
+        book = self.book
+        if book.object_id and (
+            tracker.state is not TrackState.CONFIRMED or tracker.tracks_started != self._track
+        ):
+            events.append(f'object {book.object_id} left; its demands end')
+            book.end()
+        if tracker.state is TrackState.CONFIRMED and not book.object_id:
+            entered = tracker.started_at if tracker.started_at is not None else now
+            oid = book.start(entered)
+            self._track = tracker.tracks_started
+            events.append(f'object {oid} confirmed (its track started at {entered:.2f} s)')
+        if not book.object_id:
+            return [], events
+        upcoming = book.upcoming(tracker.predictor, now, m)
+        return predict_points(
+            tracker.predictor, upcoming, geometry, top_height, book.object_id
+        ), events
+
+
+def demand_source(
+    mode: str,
+    times: Sequence[float],
+    regular: tuple[float, float, int],
+    interval: float,
+    lines_x: Sequence[float],
+    region: Sequence[float],
+    freeze: float,
+) -> tuple[DemandSchedule, ObjectDemands | None]:
+    """The predictor's demands from its parameters: the experiment's fixed schedule (explicit
+    ``times``, else ``regular`` = first, interval, count), and in ``interval`` or ``lines``
+    mode the per-object demands of continuous surveillance.
+
+    Raises:
+        PredictionError: for an unknown mode or bad values.
+    """
+    schedule = DemandSchedule.explicit(times) if times else DemandSchedule.regular(*regular)
+    if mode == 'schedule':
+        return schedule, None
+    if mode not in ('interval', 'lines'):
+        raise PredictionError(f'demand mode must be schedule, interval or lines, got {mode!r}')
+    book = DemandBook(
+        interval if mode == 'interval' else 0.0,
+        [float(x) for x in lines_x] if mode == 'lines' else (),
+        [float(x) for x in region],
+        freeze,
+    )
+    return schedule, ObjectDemands(book)

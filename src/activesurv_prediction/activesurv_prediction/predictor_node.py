@@ -23,13 +23,7 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import DemandHorizon
 from activesurv_prediction.conversions import horizon_to_msg
-from activesurv_prediction.demands import (
-    DemandBook,
-    DemandSchedule,
-    TargetGeometry,
-    predict_demands,
-    predict_points,
-)
+from activesurv_prediction.demands import TargetGeometry, demand_source, predict_demands
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.predictor import TargetPredictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace
@@ -86,29 +80,17 @@ class PredictorNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('predictor', **kwargs)
         declare(self, PARAMS)
-        v = {p.name: self.get_parameter(p.name).value for p in PARAMS if p.name != 'demand_times'}
-        times_p = self.get_parameter_or('demand_times', Parameter('demand_times', value=[]))
-        v['demand_times'] = times_p.value if times_p.type_ != Parameter.Type.NOT_SET else []
-        times = v['demand_times']
-        self.schedule = (
-            DemandSchedule.explicit(times)
-            if times
-            else DemandSchedule.regular(
-                float(v['first_demand']), float(v['service_interval']), int(v['demand_count'])
-            )
+        v = {p.name: self.get_parameter_or(p.name, Parameter(p.name)).value for p in PARAMS}
+        v['demand_times'] = v['demand_times'] or []  # unset: the regular schedule
+        self.schedule, self.objects = demand_source(
+            str(v['demand_mode']),
+            v['demand_times'],
+            (float(v['first_demand']), float(v['service_interval']), int(v['demand_count'])),
+            float(v['demand_interval']),
+            v['demand_lines'],
+            v['demand_region'],
+            float(v['demand_freeze']),
         )
-        mode = str(v['demand_mode'])
-        self.book = (
-            None
-            if mode == 'schedule'
-            else DemandBook(
-                float(v['demand_interval']) if mode == 'interval' else 0.0,
-                [float(x) for x in v['demand_lines']] if mode == 'lines' else (),
-                [float(x) for x in v['demand_region']],
-                float(v['demand_freeze']),
-            )
-        )
-        self._book_track = -1  # the track the book's current object belongs to
         self.geometry = TargetGeometry.create(v['side_marker_offset'], v['side_marker_normal'])
         self.tracker = Tracker(
             TargetPredictor(
@@ -160,33 +142,15 @@ class PredictorNode(Node):
             self._innovations.append(result.mahalanobis2)
         self._publish_horizon(t)
 
-    def _continuous(self, now: float) -> list[Any]:
-        """Continuous mode: an object id per confirmed track, and its demands."""
-        assert self.book is not None
-        t = self.tracker
-        if self.book.object_id and (
-            t.state is not TrackState.CONFIRMED or t.tracks_started != self._book_track
-        ):
-            self.get_logger().info(f'object {self.book.object_id} left; its demands end')
-            self.book.end()
-        if t.state is TrackState.CONFIRMED and not self.book.object_id:
-            oid = self.book.start(t.started_at if t.started_at is not None else now)
-            self._book_track = t.tracks_started
-            self.get_logger().info(
-                f'object {oid} confirmed (track started {self.book.entered:.2f} s)'
-            )
-        if not self.book.object_id:
-            return []
-        upcoming = self.book.upcoming(t.predictor, now, self.horizon)
-        return predict_points(
-            t.predictor, upcoming, self.geometry, self.marker_height, self.book.object_id
-        )
-
     def _publish_horizon(self, now: float) -> None:
         state = self.tracker.state
-        preds = []
-        if self.book is not None:
-            preds = self._continuous(now)
+        preds: list[Any] = []
+        if self.objects is not None:
+            preds, events = self.objects.update(
+                self.tracker, now, self.horizon, self.geometry, self.marker_height
+            )
+            for text in events:
+                self.get_logger().info(text)
         elif state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
             preds = predict_demands(
                 self.tracker.predictor,

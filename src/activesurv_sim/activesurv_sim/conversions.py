@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 from builtin_interfaces.msg import Time
 
+from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead_camera
+from activesurv_common.geometry import Transform
+from activesurv_common.mount import CameraMount
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
+from activesurv_sim.render import SensorNoise
+from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
 from activesurv_sim.xytable import ObjectState
 
 
@@ -19,3 +27,30 @@ def object_state_msg(state: ObjectState, stamp: Time, frame_id: str) -> ObjectSt
     msg.velocity.x, msg.velocity.y, msg.velocity.z = (float(v) for v in state.velocity)
     msg.in_workspace = bool(state.present)
     return msg
+
+
+def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> SimulatedCamera:
+    """The simulated camera of a ``sim_camera`` node's parameters ``p`` on ``mount``."""
+    camera_id = str(p['camera_id'])
+    if p['intrinsics_file']:
+        model = CameraModel.load(str(p['intrinsics_file']))
+    elif p['camera_type'] == 'overhead':
+        model = overhead_camera(camera_id)
+    else:
+        model = dynamic_camera(camera_id)
+    return SimulatedCamera(
+        model,
+        mount,
+        ObjectGeometry(
+            float(p['side_marker_radius']),
+            float(p['top_marker_radius']),
+            float(p['plate_half_size']),
+        ),
+        SensorNoise(
+            float(p['blur_sigma']),
+            float(p['electrons_per_level']),
+            float(p['read_noise']),
+            int(p['supersample']),
+        ),
+        int(p['seed']),
+    )

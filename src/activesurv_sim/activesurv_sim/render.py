@@ -334,7 +334,7 @@ class Renderer:
             left[win] -= take
         img += left * bg
         if noise.blur_sigma > 0.0:
-            img = cv2.GaussianBlur(img, (0, 0), noise.blur_sigma)
+            img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float32)
         out[V0:V1, U0:U1] = _expose(img, noise, rng, self._normals(img.size, rng))
         return out
 
@@ -472,9 +472,9 @@ class _PlateFrame:
 
     def fields(
         self, rays: NDArray[np.float32]
-    ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
-        """For rays (N, 3): coverage, grey level, depth (inf off the plate) and the distance
-        in pixels to the nearest boundary (plate edge, disc rim or checker line)."""
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+        """For rays (N, 3): coverage, grey level and the distance in pixels to the nearest
+        boundary (plate edge, disc rim or checker line)."""
         M, plate = self.M, self.plate
         comps = rays @ M
         c0, c1, c2 = comps[:, 0], comps[:, 1], comps[:, 2]
@@ -520,7 +520,9 @@ class _PlateFrame:
 
 def _ramp(signed_px: NDArray[np.float32]) -> NDArray[np.float32]:
     """Fraction of a pixel inside a boundary whose signed distance (in pixels) is given."""
-    return np.clip(np.float32(0.5) - signed_px, np.float32(0.0), np.float32(1.0))
+    return np.asarray(
+        np.clip(np.float32(0.5) - signed_px, np.float32(0.0), np.float32(1.0)), dtype=np.float32
+    )
 
 
 def _checker(
@@ -570,7 +572,9 @@ def _expose(
         var *= np.float32(noise.electrons_per_level and 1.0 / noise.electrons_per_level)
         var += np.float32(noise.read_noise**2)
         z = rng.standard_normal(img.shape, dtype=np.float32) if normals is None else normals
-        img = cv2.add(img, cv2.multiply(cv2.sqrt(var), z.reshape(img.shape)))
+        img = np.asarray(
+            cv2.add(img, cv2.multiply(cv2.sqrt(var), z.reshape(img.shape))), dtype=np.float32
+        )
     # Saturating, rounding conversion (negative levels are clipped to 0 first).
     return np.asarray(cv2.convertScaleAbs(np.maximum(img, np.float32(0.0))), dtype=np.uint8)
 

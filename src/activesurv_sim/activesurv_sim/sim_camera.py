@@ -15,6 +15,7 @@ simulated world's rendering is work a real lab's cameras do in hardware.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +100,28 @@ class SimulatedCamera:
         if q is None:
             raise RenderError(f'no stage state near t={t:.3f} s')
         return self.mount.pose_from_joints(q)
+
+    def covered(self, t: float) -> bool:
+        """Object and stage states are known at or after ``t`` (interpolation, no holding)."""
+        latest = [self.objects.latest_time]
+        if self.joint_names:
+            latest.append(self.joints.latest_time)
+        return all(x is not None and x >= t for x in latest)
+
+    def due(self, pending: Iterable[float], now: float, delay: float, hold: float) -> list[float]:
+        """Requested instants whose frames are due at ``now``, in time order.
+
+        A frame is due once the states around its instant have arrived (states at or after
+        it prove the instant has passed, whatever the local clock says yet), and not before
+        ``delay`` after it: a loaded machine delays a frame but never renders a stale pose.
+        After ``delay + hold`` it is due anyway (rendered with the nearest states, or not at
+        all).
+        """
+        return sorted(
+            t
+            for t in pending
+            if (self.covered(t) and (delay <= 0.0 or now >= t + delay)) or now >= t + delay + hold
+        )
 
     def warm_up(self) -> None:
         """Render one frame (a marker 0.5 m ahead) now: the first real frame then pays no lazy

@@ -21,7 +21,6 @@ from typing import Any
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
-from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead_camera
 from activesurv_common.errors import CommonError
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import (
@@ -38,9 +37,8 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
+from activesurv_sim.conversions import simulated_camera
 from activesurv_sim.errors import SimError
-from activesurv_sim.render import SensorNoise
-from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
 
 PARAMS = (
     Param('camera_id', 'cam1', 'camera id (topic prefix)'),
@@ -73,31 +71,12 @@ class SimCameraNode(Node):
         declare(self, PARAMS)
         declare_mount_parameters(self)
 
-        p = {name: self.get_parameter(name).value for name in MOUNT_PARAMETERS}
-        self.camera_id = str(self.get_parameter('camera_id').value)
-        intrinsics = str(self.get_parameter('intrinsics_file').value)
-        if intrinsics:
-            model = CameraModel.load(intrinsics)
-        elif self.get_parameter('camera_type').value == 'overhead':
-            model = overhead_camera(self.camera_id)
-        else:
-            model = dynamic_camera(self.camera_id)
         g = self.get_parameter
-        self.sim = SimulatedCamera(
-            model,
+        p = {name: g(name).value for name in MOUNT_PARAMETERS}
+        self.camera_id = str(g('camera_id').value)
+        self.sim = simulated_camera(
+            {q.name: g(q.name).value for q in PARAMS},
             mount_from_parameters(self.camera_id, p),
-            ObjectGeometry(
-                float(g('side_marker_radius').value),
-                float(g('top_marker_radius').value),
-                float(g('plate_half_size').value),
-            ),
-            SensorNoise(
-                float(g('blur_sigma').value),
-                float(g('electrons_per_level').value),
-                float(g('read_noise').value),
-                int(g('supersample').value),
-            ),
-            int(g('seed').value),
         )
         self.sim.warm_up()
         self.frame_id = f'{self.camera_id}_optical'
@@ -116,16 +95,12 @@ class SimCameraNode(Node):
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
         if bool(g('render_ahead').value):
+            planned = topics.planned_joint_states(self.camera_id)
             self.create_subscription(
                 ObjectState, topics.PLANNED_OBJECT_STATE, self._on_planned_object, qos.EVENTS
             )
             if self.sim.joint_names:
-                self.create_subscription(
-                    JointState,
-                    topics.planned_joint_states(self.camera_id),
-                    self._on_planned_joints,
-                    qos.EVENTS,
-                )
+                self.create_subscription(JointState, planned, self._on_planned_joints, qos.EVENTS)
         self._pending: set[float] = set()
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
@@ -149,10 +124,8 @@ class SimCameraNode(Node):
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
         if q is None or not self.sim.joints.add(time_to_sec(msg.header.stamp), q):
-            self.get_logger().warning(
-                f'ignored joint state without finite {self.sim.joint_names}',
-                throttle_duration_sec=5,
-            )
+            why = f'ignored joint state without finite {self.sim.joint_names}'
+            self.get_logger().warning(why, throttle_duration_sec=5)
         elif self._pending:
             self._on_tick()
 
@@ -161,21 +134,20 @@ class SimCameraNode(Node):
             t = time_to_sec(msg.demand_instant)
             self._pending.add(t)
             self._on_tick()
-            self._ahead(t)
+            self._ahead(t)  # the truth may be planned already
 
     def _on_planned_object(self, msg: ObjectState) -> None:
-        t = time_to_sec(msg.header.stamp)
-        self.sim.plan(t, state=object_state_vector(msg))
-        self._ahead(t)
+        self._ahead(time_to_sec(msg.header.stamp), state=object_state_vector(msg))
 
     def _on_planned_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
         if q is not None:
-            t = time_to_sec(msg.header.stamp)
-            self.sim.plan(t, q=q)
-            self._ahead(t)
+            self._ahead(time_to_sec(msg.header.stamp), q=q)
 
-    def _ahead(self, t: float) -> None:
+    def _ahead(self, t: float, state: Any = None, q: Any = None) -> None:
+        """Plan the truth at ``t``; render its frame now if it is requested and planned."""
+        if state is not None or q is not None:
+            self.sim.plan(t, state, q)
         if t in self._pending:
             try:
                 self.sim.render_ahead(t)
@@ -199,27 +171,15 @@ class SimCameraNode(Node):
         self.frames_published += 1
         self.frames_ahead += int(ahead)
 
-    def _covered(self, t: float) -> bool:
-        """Object and stage states are known at or after ``t`` (interpolation, no holding)."""
-        latest = [self.sim.objects.latest_time]
-        if self.sim.joint_names:
-            latest.append(self.sim.joints.latest_time)
-        return all(x is not None and x >= t for x in latest)
-
     def _on_tick(self) -> None:
-        # A triggered frame is rendered once the states around its instant have arrived, so that
-        # a loaded machine delays the frame but never renders it with a stale pose; after
-        # trigger_delay + state_hold it is rendered with the nearest states (or not at all).
-        now = self._now()
-        delay = float(self.get_parameter('trigger_delay').value)
-        hold = float(self.get_parameter('state_hold').value)
-        due = [
-            t
-            for t in self._pending
-            # States at or after t prove the instant has passed, whatever this clock says yet.
-            if (self._covered(t) and (delay <= 0.0 or now >= t + delay)) or now >= t + delay + hold
-        ]
-        for t in sorted(due):
+        g = self.get_parameter
+        due = self.sim.due(
+            self._pending,
+            self._now(),
+            float(g('trigger_delay').value),
+            float(g('state_hold').value),
+        )
+        for t in due:
             self._pending.discard(t)
             self._publish(t)
 

@@ -16,13 +16,22 @@ its state is parked far outside every camera's view (``in_workspace`` false).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_sim.xytable import TABLE_RANGE, ObjectModel, ObjectState, TimedPath, check_in_table
+from activesurv_sim.xytable import (
+    TABLE_RANGE,
+    ObjectModel,
+    ObjectState,
+    TimedPath,
+    XYTable,
+    check_in_table,
+    named_path,
+)
 from activesurv_stages.errors import ConfigError
 
 Array = NDArray[np.float64]
@@ -83,9 +92,11 @@ def travel(
         ss.append(s)
         if s >= nxt - 1e-9 and nxt in dwell:
             v = 0.0
-            t += dwell.pop(nxt)
-            ts.append(t)
-            ss.append(s)
+            wait = dwell.pop(nxt)
+            if wait > 0.0:
+                t += wait
+                ts.append(t)
+                ss.append(s)
     arc = np.asarray(ss)
     xy = np.column_stack(
         [np.interp(arc, s_vertex, pts[:, 0]), np.interp(arc, s_vertex, pts[:, 1])]
@@ -241,3 +252,31 @@ class ObjectStream:
             p is not None and 0.0 < t - p.entered < p.path.duration,
             p is not None,
         )
+
+
+def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
+    """The xy table of an ``xy_table`` node's parameters: one programmed path, or a stream.
+
+    Raises:
+        ConfigError: for a bad path or object model.
+    """
+    off = [float(v) for v in p['side_offset']]
+    nrm = [float(v) for v in p['side_normal']]
+    if len(off) != 3 or len(nrm) != 3:
+        raise ConfigError('side_offset and side_normal need 3 numbers each')
+    model = ObjectModel(float(p['top_height']), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2]))
+    speed, accel = float(p['speed']), float(p['acceleration'])
+    if p['path_type'] == 'stream':
+        return ObjectStream(
+            int(p['stream_seed']),
+            float(p['arrival_interval']),
+            float(p['start_time']),
+            [str(k) for k in p['path_kinds']],
+            speed=speed,
+            acceleration=accel,
+            model=model,
+        )
+    path = named_path(
+        str(p['path_type']), list(p['path_points']), speed, accel, str(p['csv_file'])
+    )
+    return XYTable(path, float(p['start_time']), model)

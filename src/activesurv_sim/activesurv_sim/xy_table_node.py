@@ -38,9 +38,9 @@ from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg
-from activesurv_sim.stream import PATH_KINDS, ObjectStream
-from activesurv_sim.xytable import ObjectModel, XYTable, named_path
-from activesurv_stages.errors import ConfigError, StageError
+from activesurv_sim.stream import PATH_KINDS, table_from_parameters
+from activesurv_sim.xytable import XYTable
+from activesurv_stages.errors import StageError
 
 PARAMS = (
     Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv', 'stream')),
@@ -80,34 +80,7 @@ class XYTableNode(Node):
         declare(self, PARAMS)
 
         g = self.get_parameter
-        off = [float(v) for v in g('side_offset').value]
-        nrm = [float(v) for v in g('side_normal').value]
-        if len(off) != 3 or len(nrm) != 3:
-            raise ConfigError('side_offset and side_normal need 3 numbers each')
-        model = ObjectModel(
-            float(g('top_height').value), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2])
-        )
-        speed, accel = float(g('speed').value), float(g('acceleration').value)
-        self.table: XYTable | ObjectStream
-        if g('path_type').value == 'stream':
-            self.table = ObjectStream(
-                int(g('stream_seed').value),
-                float(g('arrival_interval').value),
-                float(g('start_time').value),
-                [str(k) for k in g('path_kinds').value],
-                speed=speed,
-                acceleration=accel,
-                model=model,
-            )
-        else:
-            path = named_path(
-                str(g('path_type').value),
-                list(g('path_points').value),
-                speed,
-                accel,
-                str(g('csv_file').value),
-            )
-            self.table = XYTable(path, float(g('start_time').value), model)
+        self.table = table_from_parameters({p.name: g(p.name).value for p in PARAMS})
         self.publish_clock = bool(g('publish_clock').value)
         self.rtf = float(g('real_time_factor').value)
         self.frame_id = str(g('frame_id').value)

@@ -1,0 +1,66 @@
+"""The dispatcher's session core in continuous surveillance: park between objects, withdraw the
+demands of an object that left, forget the old ones (no ROS)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from activesurv_common.sensor_model import SensorModel
+from activesurv_dispatch.planner import Demand
+from activesurv_dispatch.sensors import load_setup
+from activesurv_dispatch.session import FORGET_AFTER, Dispatcher, DispatcherConfig
+
+NORMAL = np.array([0.0, -1.0, 0.0])
+COV = np.diag([4e-6, 4e-6, 2.5e-7, 1e-4, 1e-4, 1e-4])
+
+
+def _demand(j: int, t: float, x: float, obj: int = 1) -> Demand:
+    return Demand(j, t, np.array([x, 0.05, 0.05]), NORMAL, COV, obj)
+
+
+def _session() -> tuple[Dispatcher, dict[str, np.ndarray]]:
+    setup = load_setup(motion='fast')
+    d = Dispatcher(setup, SensorModel.load(), DispatcherConfig())
+    away = {c: q + 0.05 for c, q in setup.initial.items()}  # not where they wait
+    for c, q in away.items():
+        d.on_joints(c, q, 0.0)
+    return d, away
+
+
+def test_between_objects_the_cameras_go_back_to_their_initial_poses() -> None:
+    d, _ = _session()
+    out = d.set_horizon([], 0.0)
+    parked = {g.camera_id: g.positions for g in out.goals}
+    moving = [s.camera_id for s in d.setup.sensors if s.moves]
+    assert sorted(parked) == sorted(moving)
+    for c, q in parked.items():
+        assert np.allclose(q, d.setup.initial[c])
+    # Once sent, the same goals are not sent again on every replan.
+    assert d.set_horizon([], 0.1).goals == []
+
+
+def test_demands_of_an_object_that_left_are_withdrawn_not_failed() -> None:
+    d, _ = _session()
+    d.set_horizon([_demand(0, 2.0, 0.25), _demand(1, 4.0, 0.27)], 0.0)
+    d.tick(0.5)
+    out = d.set_horizon([], 0.6)  # the object left the table
+    assert d.counts['withdrawn_demands'] == 2
+    assert out.goals, 'and the cameras are parked'
+    assert not d.tick(5.0).missed
+    # An experiment's demands (object 0) are promised for good: they are reported missed.
+    e, _ = _session()
+    e.set_horizon([_demand(0, 2.0, 0.25, obj=0)], 0.0)
+    e.set_horizon([], 0.6)
+    assert [m.demand.index for m in e.tick(2.5).missed] == [0]
+
+
+def test_a_long_session_forgets_demands_long_past() -> None:
+    d, _ = _session()
+    for j in range(5):
+        d.set_horizon([_demand(j, 1.0 + j, 0.25)], 0.5 + j)
+        d.tick(1.0 + j - 0.2)
+        d.tick(1.0 + j + 0.01)
+    assert len(d.demands) == 5
+    d.tick(5.0 + FORGET_AFTER + 1.0)
+    assert d.demands == {}
+    assert d.scheduler.requested == {}

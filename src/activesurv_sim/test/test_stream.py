@@ -1,0 +1,65 @@
+"""The object stream of continuous surveillance (no ROS)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from activesurv_sim.stream import PARKED, PATH_KINDS, ObjectStream, random_path, travel
+from activesurv_sim.xytable import TABLE_RANGE
+from activesurv_stages.errors import ConfigError
+
+
+@pytest.mark.parametrize('kind', PATH_KINDS)
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_every_path_kind_crosses_the_table_within_its_range_and_speed(
+    kind: str, seed: int
+) -> None:
+    p = random_path(kind, np.random.default_rng(seed), speed=0.02, acceleration=0.02)
+    (x0, x1), (y0, y1) = TABLE_RANGE
+    assert np.all((p.xy[:, 0] >= x0) & (p.xy[:, 0] <= x1))
+    assert np.all((p.xy[:, 1] >= y0) & (p.xy[:, 1] <= y1))
+    speed = np.hypot(*np.diff(p.xy, axis=0).T) / np.diff(p.t)
+    assert speed.max() <= 0.02 + 1e-6
+    # From one end of the table to the other, at rest at both ends.
+    assert abs(p.xy[-1, 0] - p.xy[0, 0]) > 0.4
+    assert np.allclose(p.velocity(0.0), 0.0, atol=2e-3)
+    assert np.allclose(p.velocity(p.duration), 0.0, atol=2e-3)
+
+
+def test_a_stop_holds_still_for_its_dwell_and_a_reversal_goes_back() -> None:
+    p = travel([[0.1, 0.1], [0.2, 0.1], [0.3, 0.1]], [0.02, 0.02], {1: 3.0}, 0.02)
+    at_stop = np.flatnonzero(np.isclose(p.xy[:, 0], 0.2, atol=1e-9))
+    assert p.t[at_stop[-1]] - p.t[at_stop[0]] >= 3.0 - 1e-9
+    r = random_path('reversal', np.random.default_rng(4))
+    dx = np.diff(r.xy[:, 0])
+    assert (dx > 1e-9).any(), 'a reversal moves both ways along x'
+    assert (dx < -1e-9).any(), 'a reversal moves both ways along x'
+
+
+def test_the_stream_is_one_object_at_a_time_and_seeded() -> None:
+    a = ObjectStream(7, arrival_interval=10.0, first_entry=1.0)
+    b = ObjectStream(7, arrival_interval=10.0, first_entry=1.0)
+    assert a.pass_at(0.5) is None
+    assert not a.state(0.5).present
+    assert np.allclose(a.state(0.5).top[:2], PARKED)
+    a.pass_at(500.0)
+    for prev, nxt in zip(a.passes, a.passes[1:], strict=False):
+        assert nxt.entered >= prev.left + a.gap - 1e-9
+        assert nxt.entered >= prev.entered + 10.0 - 1e-9
+    assert [p.kind for p in a.passes[:5]] == [
+        b.pass_at(p.entered + 0.1).kind for p in a.passes[:5]
+    ]
+    first = a.passes[0]
+    s = a.state(first.entered + 1.0)
+    assert s.present
+    assert np.allclose(s.top[:2], first.path.position(1.0))
+
+
+def test_bad_stream_settings_are_refused() -> None:
+    with pytest.raises(ConfigError):
+        ObjectStream(0, arrival_interval=0.0)
+    with pytest.raises(ConfigError):
+        ObjectStream(0, kinds=['zigzag'])
+    with pytest.raises(ConfigError):
+        random_path('zigzag', np.random.default_rng(0))

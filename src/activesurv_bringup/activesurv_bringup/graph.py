@@ -469,7 +469,11 @@ def _run(
     env = dict(os.environ)
     owns_rclpy = not rclpy.ok()
     if owns_rclpy:
-        rclpy.init()
+        from rclpy.signals import SignalHandlerOptions
+
+        # SIGINT stays Python's (KeyboardInterrupt, or a session's own handler): the nodes are
+        # stopped in order in ``finally``, rather than the monitor's context shut under it.
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     monitor = _Monitor([m.name for s in specs[:-1] for m in (s.members or (s,))])
     launcher: Launcher | Composition
     if opts.compose:

@@ -208,18 +208,23 @@ def run_surveil(
     with _Stop() as stop:
 
         def done(mon: Any) -> bool:
-            return stop.requested or (s.duration is not None and mon.sim_time >= s.duration)
+            if stop.requested:
+                progress(
+                    f'signal received at simulated time {mon.sim_time:.1f} s: stopping (open '
+                    'demands are answered, the bag is closed)'
+                )
+                return True
+            return s.duration is not None and mon.sim_time >= s.duration
 
         def report(mon: Any) -> str | None:
-            if mon.sim_time - last[0] < 10.0 and not stop.requested:
+            if mon.sim_time - last[0] < 10.0:
                 return None
             last[0] = mon.sim_time
             ok = sum(1 for e in mon.estimates.values() if int(e.status) == 0)
             end = f' of {s.duration:.0f} s' if s.duration else ''
-            why = '; stopping (signal)' if stop.requested else ''
             return (
                 f'simulated time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
-                f'answered, {ok} ok{why}'
+                f'answered, {ok} ok'
             )
 
         run_graph(exp, out_dir, opts, progress, until=Until(done, limit, report), specs=specs)

@@ -23,12 +23,10 @@ with ``<member>: error: <reason>`` and exit status 1, as its console script woul
 
 from __future__ import annotations
 
-import signal
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import yaml
@@ -89,7 +87,12 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from activesurv_bringup.errors import BagError
-    from activesurv_common.ros.node import STARTUP_ERRORS, make_executor, one_line
+    from activesurv_common.ros.node import (
+        STARTUP_ERRORS,
+        make_executor,
+        one_line,
+        spin_until_signal,
+    )
     from activesurv_sim.errors import SimError
     from activesurv_stages.errors import StageError
 
@@ -123,17 +126,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     for n in nodes:
         executor.add_node(n)
-    stopping = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        stopping = True
-
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
     try:
-        while rclpy.ok() and not stopping:
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_signal(executor)
         flushed = False
         for n in nodes:
             flush = getattr(n, 'flush', None)

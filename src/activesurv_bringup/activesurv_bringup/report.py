@@ -79,39 +79,9 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
         s = truth.at(tj, hold=0.5)
         if s is None:
             raise BagError(f'no ground truth near demand {j} at {tj:.2f} s')
-        rec = DemandRecord(j, tj, s[:3], s[3:])
-        req = requests.get(j)
-        if req is not None:
-            rec.assigned = [str(c) for c in req.camera_ids]
-        seen = []
-        for o in observations.get(j, []):
-            if o.status == 0:
-                p, q = o.camera_pose.position, o.camera_pose.orientation
-                seen.append(
-                    Transform.from_rt(
-                        matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z]
-                    )
-                )
-        rec.visibility = visibility_from_transforms(model, seen, s[:3], s[3:]) if seen else 0.0
-        est = estimates.get(j)
-        if est is None:
-            rec.status = 'not_captured' if req is None else 'no_answer'
-            rec.reason = (
-                'the demand passed with no capture request'
-                if req is None
-                else 'no target_estimate was recorded for it'
-            )
-        else:
-            e, t_ns = est
-            rec.status = STATUS.get(int(e.status), f'status_{e.status}')
-            rec.reason = str(e.reason)
-            rec.cameras = [str(c) for c in e.cameras_used]
-            rec.faulty = [str(c) for c in e.cameras_faulty]
-            rec.missing = [str(c) for c in e.cameras_missing]
-            rec.latency = t_ns * 1e-9 - tj
-            if e.status in (0, 3) and np.all(np.isfinite(_vec(e.position))):
-                rec.estimated_position = _vec(e.position)
-                rec.estimated_normal = _vec(e.normal)
+        rec = demand_record(
+            j, tj, s, requests.get(j), observations.get(j, []), estimates.get(j), model
+        )
         records.append(rec)
     return results_document(
         str(info['set']),
@@ -123,6 +93,56 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             'faults': info.get('faults', []),
         },
     )
+
+
+def demand_record(
+    j: int,
+    tj: float,
+    truth: np.ndarray,
+    req: Any,
+    observations: Sequence[Any],
+    est: tuple[Any, int] | None,
+    model: SensorModel,
+) -> DemandRecord:
+    """The record of demand ``j`` at ``tj`` from its messages in a bag.
+
+    Args:
+        truth: side marker position and normal at ``tj`` (6,).
+        req: its capture request, or None.
+        observations: its marker observations.
+        est: its target estimate and the bag time it was recorded at (ns), or None.
+        model: the sensor model, for the visibility of the cameras that imaged the marker.
+    """
+    rec = DemandRecord(j, tj, truth[:3], truth[3:])
+    if req is not None:
+        rec.assigned = [str(c) for c in req.camera_ids]
+    seen = []
+    for o in observations:
+        if o.status == 0:
+            p, q = o.camera_pose.position, o.camera_pose.orientation
+            seen.append(
+                Transform.from_rt(matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z])
+            )
+    rec.visibility = visibility_from_transforms(model, seen, truth[:3], truth[3:]) if seen else 0.0
+    if est is None:
+        rec.status = 'not_captured' if req is None else 'no_answer'
+        rec.reason = (
+            'the demand passed with no capture request'
+            if req is None
+            else 'no target_estimate was recorded for it'
+        )
+        return rec
+    e, t_ns = est
+    rec.status = STATUS.get(int(e.status), f'status_{e.status}')
+    rec.reason = str(e.reason)
+    rec.cameras = [str(c) for c in e.cameras_used]
+    rec.faulty = [str(c) for c in e.cameras_faulty]
+    rec.missing = [str(c) for c in e.cameras_missing]
+    rec.latency = t_ns * 1e-9 - tj
+    if e.status in (0, 3) and np.all(np.isfinite(_vec(e.position))):
+        rec.estimated_position = _vec(e.position)
+        rec.estimated_normal = _vec(e.normal)
+    return rec
 
 
 def find_runs(path: Path) -> list[Path]:

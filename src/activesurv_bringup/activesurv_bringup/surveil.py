@@ -27,17 +27,15 @@ import numpy as np
 
 from activesurv_bringup.bagio import read_bag, run_info
 from activesurv_bringup.errors import BagError, ConfigError
-from activesurv_bringup.evaluation import DemandRecord, visibility_from_transforms
 from activesurv_bringup.experiment import Experiment, load_experiment
 from activesurv_bringup.graph import Progress, Until, graph_specs, run_graph
 from activesurv_bringup.launcher import NodeSpec
 from activesurv_bringup.options import RunOptions
-from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_bringup.report import demand_record
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.stream import PATH_KINDS, ObjectStream
 
-STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
 # Where the Set A cameras can serve (their placement covers the paper's tracking region).
 DEMAND_REGION = (0.10, 0.40, 0.0, 0.2)
 FIRST_ENTRY = 1.0  # s of simulated time when the first object enters
@@ -297,33 +295,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         s = truth.at(tj, hold=0.5)
         if s is None:
             continue
-        rec = DemandRecord(j, tj, s[:3], s[3:])
-        if req is not None:
-            rec.assigned = [str(c) for c in req.camera_ids]
-        seen = []
-        for o in observations.get(j, []):
-            if o.status == 0:
-                p, q = o.camera_pose.position, o.camera_pose.orientation
-                seen.append(
-                    Transform.from_rt(
-                        matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z]
-                    )
-                )
-        rec.visibility = visibility_from_transforms(model, seen, s[:3], s[3:]) if seen else 0.0
-        est = estimates.get(j)
-        if est is None:
-            rec.status, rec.reason = 'no_answer', 'no target_estimate was recorded for it'
-        else:
-            e, t_ns = est
-            rec.status = STATUS.get(int(e.status), f'status_{e.status}')
-            rec.reason = str(e.reason)
-            rec.cameras = [str(c) for c in e.cameras_used]
-            rec.faulty = [str(c) for c in e.cameras_faulty]
-            rec.missing = [str(c) for c in e.cameras_missing]
-            rec.latency = t_ns * 1e-9 - tj
-            if e.status in (0, 3) and np.all(np.isfinite(_vec(e.position))):
-                rec.estimated_position = _vec(e.position)
-                rec.estimated_normal = _vec(e.normal)
+        rec = demand_record(j, tj, s, req, observations.get(j, []), estimates.get(j), model)
         doc = rec.to_json()
         doc['object'] = object_of.get(j, 0)
         demands.append(doc)

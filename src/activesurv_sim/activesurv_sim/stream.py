@@ -243,15 +243,8 @@ class ObjectStream:
         else:
             tau = t - p.entered
             xy, v = p.path.position(tau), p.path.velocity(tau)
-        top = np.array([xy[0], xy[1], self.model.top_height])
-        return ObjectState(
-            top,
-            top + np.asarray(self.model.side_offset),
-            self._normal.copy(),
-            np.array([v[0], v[1], 0.0]),
-            p is not None and 0.0 < t - p.entered < p.path.duration,
-            p is not None,
-        )
+        moving = p is not None and 0.0 < t - p.entered < p.path.duration
+        return self.model.at(xy, v, moving, p is not None)
 
 
 def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:

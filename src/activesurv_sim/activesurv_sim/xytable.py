@@ -188,6 +188,19 @@ class ObjectModel:
         ):
             raise ConfigError('object model values must be finite, with a non-zero normal')
 
+    def at(self, xy: Array, v: Array, moving: bool, present: bool = True) -> ObjectState:
+        """The object's state with its carriage at ``xy`` moving at ``v`` (m, m/s)."""
+        n = np.asarray(self.side_normal, dtype=np.float64)
+        top = np.array([xy[0], xy[1], self.top_height])
+        return ObjectState(
+            top,
+            top + np.asarray(self.side_offset),
+            n / np.linalg.norm(n),
+            np.array([v[0], v[1], 0.0]),
+            moving,
+            present,
+        )
+
 
 @dataclass(frozen=True)
 class ObjectState:
@@ -221,14 +234,7 @@ class XYTable:
         tau = t - self.start_time
         xy = self.path.position(tau)
         v = self.path.velocity(tau)
-        top = np.array([xy[0], xy[1], self.model.top_height])
-        return ObjectState(
-            top,
-            top + np.asarray(self.model.side_offset),
-            self._normal.copy(),
-            np.array([v[0], v[1], 0.0]),
-            bool(0.0 <= tau <= self.path.duration),
-        )
+        return self.model.at(xy, v, bool(0.0 <= tau <= self.path.duration))
 
 
 def named_path(

@@ -67,6 +67,23 @@ def make_executor() -> Executor:
     return SingleThreadedExecutor()
 
 
+def spin_until_signal(executor: Executor) -> None:
+    """Spin until SIGINT, SIGTERM or an external shutdown of the context."""
+    stopping = False
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        while rclpy.ok() and not stopping:
+            executor.spin_once(timeout_sec=0.1)
+    except ExternalShutdownException:
+        pass
+
+
 def run_node(
     name: str,
     factory: Callable[[], N],
@@ -101,19 +118,8 @@ def run_node(
         rclpy.try_shutdown()
         return 1
     executor.add_node(node)
-    stopping = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        stopping = True
-
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
     try:
-        while rclpy.ok() and not stopping:
-            executor.spin_once(timeout_sec=0.1)
-    except ExternalShutdownException:
-        pass
+        spin_until_signal(executor)
     finally:
         if on_stop is not None:
             on_stop(node)

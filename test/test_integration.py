@@ -92,6 +92,26 @@ def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:
         assert reader.message_count > 1000
 
 
+def test_bag_records_the_qos_its_publishers_offer(graph_run: Path) -> None:
+    import yaml
+
+    meta = yaml.safe_load((graph_run / 'bag' / 'metadata.yaml').read_text())
+    topics = {
+        t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+        for t in meta['rosbag2_bagfile_information']['topics_with_message_count']
+    }
+    assert '/activesurv/recorder_status' not in topics, 'the recorder records its own status'
+    horizon = topics['/demand_horizon']
+    assert horizon
+    assert all(q['reliability'] == 'reliable' for q in horizon)
+    assert all(q['durability'] == 'transient_local' for q in horizon)
+    # /clock and /object_state are published reliable (depth 1 and 20): recorded as such.
+    assert [q['reliability'] for q in topics['/clock']] == ['reliable']
+    assert [q['depth'] for q in topics['/object_state']] == [20]
+    # Latched topics keep their depth (capture requests: the last 50).
+    assert {q['depth'] for q in topics['/capture_request']} == {50}
+
+
 def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
     before = json.loads((graph_run / 'results.json').read_text())
     (graph_run / 'results.json').unlink()

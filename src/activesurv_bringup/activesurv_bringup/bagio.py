@@ -71,16 +71,18 @@ class BagWriter:
     connections: dict[str, Any]
 
     def connection(self, topic: str, msgtype: str, qos: Any = None) -> Any:
-        """The bag connection of ``topic`` (added on first use, with the offered QoS)."""
+        """The bag connection of ``topic`` (added on first use, with the offered QoS: one
+        profile or a list, one per publisher)."""
         conn = self.connections.get(topic)
         if conn is None:
+            profiles = [] if qos is None else list(qos) if isinstance(qos, list) else [qos]
             try:
                 conn = self.writer.add_connection(
                     topic,
                     msgtype,
                     typestore=self.ts,
                     serialization_format='cdr',
-                    offered_qos_profiles=[qos] if qos is not None else (),
+                    offered_qos_profiles=profiles,
                 )
             except Exception as exc:
                 raise BagError(f'cannot record {topic} ({msgtype}): {exc}') from exc
@@ -302,6 +304,43 @@ def read_bag(path: Path, topics: set[str] | None = None) -> Iterator[BagMessage]
         raise BagError(f'bag {path} is unreadable or damaged: {exc}') from exc
 
 
+def offered_qos(path: Path) -> dict[str, list[Any]]:
+    """The QoS profiles each topic's publishers offered, as recorded in the bag's metadata.
+
+    Raises:
+        BagError: for a missing or unreadable bag.
+    """
+    try:
+        with Reader(path) as reader:
+            out: dict[str, list[Any]] = {}
+            for c in reader.connections:
+                out.setdefault(c.topic, []).extend(getattr(c.ext, 'offered_qos_profiles', []))
+            return out
+    except Exception as exc:
+        raise BagError(f'bag {path} is unreadable or damaged: {exc}') from exc
+
+
+def playback_qos(recorded: Sequence[Any], fallback: Any) -> Any:
+    """The QoS to publish a recorded topic with, as ``ros2 bag play`` chooses it: reliable and
+    transient local only if every recorded publisher was, as deep as the deepest one."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
+        QosDurability,
+        QosReliability,
+    )
+
+    if not recorded:
+        return fallback
+    reliable = all(q.reliability == QosReliability.RELIABLE for q in recorded)
+    latched = all(q.durability == QosDurability.TRANSIENT_LOCAL for q in recorded)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=max(1, *(int(q.depth) for q in recorded)),
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
 def run_info(path: Path) -> dict[str, Any]:
     """The run description the orchestrator stored in the bag."""
     for m in read_bag(path, {RUN_INFO_TOPIC}):
@@ -309,10 +348,13 @@ def run_info(path: Path) -> dict[str, Any]:
     raise BagError(f'bag {path} has no {RUN_INFO_TOPIC} message (not an activesurv run?)')
 
 
-def recording_qos(publishers: Sequence[Any]) -> tuple[Any, Any]:
+def recording_qos(publishers: Sequence[Any]) -> tuple[Any, list[Any]]:
     """How to subscribe to a topic with these publishers (rclpy ``TopicEndpointInfo``), and the
-    QoS to note in the bag: reliable only if they all are, transient local only if they all
-    are (so latched blackboard topics arrive too)."""
+    QoS profiles they offer, for the bag's metadata (what ``ros2 bag play`` offers again).
+
+    The subscription is reliable only if they all are, transient local only if they all are
+    (so latched blackboard topics arrive too), and deep enough for their history.
+    """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
         Qos,
@@ -331,20 +373,30 @@ def recording_qos(publishers: Sequence[Any]) -> tuple[Any, Any]:
     )
     profile = QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
-        depth=200,
+        depth=max([200, *(int(i.qos_profile.depth) for i in publishers)]),
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
     zero = QosTime(0, 0)
-    offered = Qos(
-        QosHistory.KEEP_LAST,
-        1 if latched else 10,
-        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
-        QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-        zero,
-        zero,
-        QosLiveliness.AUTOMATIC,
-        zero,
-        False,
-    )
+    offered = []
+    for i in publishers:
+        q = i.qos_profile
+        keep_all = q.history == HistoryPolicy.KEEP_ALL
+        offered.append(
+            Qos(
+                QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
+                int(q.depth),
+                QosReliability.RELIABLE
+                if q.reliability == ReliabilityPolicy.RELIABLE
+                else QosReliability.BEST_EFFORT,
+                QosDurability.TRANSIENT_LOCAL
+                if q.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                else QosDurability.VOLATILE,
+                zero,
+                zero,
+                QosLiveliness.AUTOMATIC,
+                zero,
+                False,
+            )
+        )
     return profile, offered

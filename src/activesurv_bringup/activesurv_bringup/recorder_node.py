@@ -1,17 +1,14 @@
 """The ``recorder`` node: records every topic of the graph to an MCAP rosbag2 bag.
 
-Like ``ros2 bag record -a`` (not available from PyPI): topics are discovered as they appear,
-each is subscribed with QoS matching its publishers (reliable only if they all are, transient
-local only if they all are, so latched blackboard topics arrive too), and messages are written
-as received (serialized bytes, no conversion), stamped with the node's clock: on simulated time,
-the last /clock tick extrapolated by the wall time since at the ticks' rate
-(:class:`~activesurv_common.timeseries.ClockEstimate`), so a message 8 ms after a tick is
-logged 8 ms after it, not at the tick (latencies are read off these times). Streams listed
-in ``thin_topics`` (default: the overhead camera) are thinned to ``image_rate`` Hz; every
-other message is kept (the triggered frames of the dynamic cameras must all be there for
-replay). Message definitions go into the bag (Foxglove and ``ros2 bag``
-read them). The ``run_info`` parameter (a JSON document) is stored on ``/activesurv/run_info``.
-On SIGINT/SIGTERM the bag is closed cleanly.
+Like ``ros2 bag record -a`` (not on PyPI): a topic is recorded once a publisher of it appears,
+subscribed to match its publishers (reliable / transient local only if they all are) and noted
+in ``metadata.yaml`` with the QoS profiles they offer (what ``replay`` and ``ros2 bag play``
+offer again); its own status topic never. Messages are written as received (serialized bytes),
+stamped on simulated time with the last /clock tick extrapolated at the ticks' rate
+(:class:`~activesurv_common.timeseries.ClockEstimate`: latencies are read off these times).
+Streams in ``thin_topics`` (the overhead camera) are thinned to ``image_rate`` Hz; every other
+message is kept. Message definitions go into the bag; ``run_info`` (JSON) is stored on
+``/activesurv/run_info``. On SIGINT/SIGTERM the bag is closed cleanly.
 
 Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
 exclude (topics), discovery_period (s), run_info (JSON), flush_period (s), max_bag_duration (s:
@@ -100,6 +97,8 @@ class RecorderNode(Node):
             info = json.loads(str(g('run_info').value))
         except ValueError as exc:
             raise BagError(f'run_info is not JSON: {exc}') from exc
+        # Bags of this recorder note the QoS their publishers offered (replay trusts them).
+        info.setdefault('recorder', {})['qos'] = 'offered'
         self.bag.write_json(RUN_INFO_TOPIC, 0, info)
         # Discovery runs on the wall clock: with simulated time nothing would tick before /clock.
         self.create_timer(
@@ -107,12 +106,12 @@ class RecorderNode(Node):
             self._discover,
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
+        self.exclude.add(STATUS_TOPIC)  # never our own status
         self._discover()
         flush_period = float(g('flush_period').value)
         if not flush_period > 0.0:
             raise BagError(f'flush_period must be > 0 s, got {flush_period}')
         self.create_timer(flush_period, self._flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.exclude.add(STATUS_TOPIC)
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, qos.STATUS)
 
     def _flush(self) -> None:
@@ -123,13 +122,17 @@ class RecorderNode(Node):
         # Orchestrators wait on this before stopping the graph (nothing left unrecorded).
         self._status_pub.publish(String(data=json.dumps(counts)))
 
-    def _qos(self, topic: str) -> tuple[QoSProfile, Any]:
-        return recording_qos(self.get_publishers_info_by_topic(topic))
+    def _qos(self, topic: str) -> tuple[QoSProfile, Any] | None:
+        publishers = self.get_publishers_info_by_topic(topic)
+        return recording_qos(publishers) if publishers else None
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subscribed or topic in self.exclude or not types:
                 continue
+            qos_pair = self._qos(topic)
+            if qos_pair is None:
+                continue  # only subscribers so far: wait for a publisher to know its QoS
             type_name = types[0]
             try:
                 cls = message_class(type_name)
@@ -137,7 +140,7 @@ class RecorderNode(Node):
                 self.get_logger().warning(f'cannot record {topic}: unknown type {type_name}')
                 self.subscribed[topic] = type_name
                 continue
-            profile, offered = self._qos(topic)
+            profile, offered = qos_pair
             if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
                 self.latched.add(topic)  # a split bag repeats its last message in every file
             with self._lock:
@@ -162,8 +165,7 @@ class RecorderNode(Node):
                     self.clock.tick(c.sec + 1e-9 * c.nanosec, time.monotonic())
                 now = self._stamp()
                 if thinned and self.image_period:
-                    last = self.last_image.get(topic, -1e18)
-                    if now * 1e-9 - last < self.image_period - 1e-6:
+                    if now * 1e-9 - self.last_image.get(topic, -1e18) < self.image_period - 1e-6:
                         return
                     self.last_image[topic] = now * 1e-9
                 self.bag.write_raw(topic, type_name, now, data)
@@ -173,11 +175,9 @@ class RecorderNode(Node):
 
     def _stamp(self) -> int:
         """Nanoseconds to log a message received now with."""
-        if self.sim_time:
-            est = self.clock.now(time.monotonic())
-            if est is not None:
-                return max(round(est * 1e9), self.get_clock().now().nanoseconds)
-        return int(self.get_clock().now().nanoseconds)
+        est = self.clock.now(time.monotonic()) if self.sim_time else None
+        node_now = int(self.get_clock().now().nanoseconds)
+        return node_now if est is None else max(round(est * 1e9), node_now)
 
     def close(self) -> None:
         with self._lock:

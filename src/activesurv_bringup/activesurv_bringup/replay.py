@@ -20,7 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.bagio import message_class, read_bag, run_info
+from activesurv_bringup.bagio import (
+    message_class,
+    offered_qos,
+    playback_qos,
+    read_bag,
+    run_info,
+)
 from activesurv_bringup.errors import BagError, NodeDiedError
 from activesurv_bringup.graph import mount_parameters
 from activesurv_bringup.launcher import Launcher, NodeSpec
@@ -80,7 +86,7 @@ def _inputs(info: dict[str, Any]) -> set[str]:
     return topics
 
 
-def run_replay(bag: Path, out_dir: Path, rtf: float = 0.5, progress: Progress = print) -> Path:
+def run_replay(bag: Path, out_dir: Path, rtf: float = 1.0, progress: Progress = print) -> Path:
     """Replay ``bag``; returns the new bag with the replayed estimates.
 
     Raises:
@@ -101,8 +107,12 @@ def run_replay(bag: Path, out_dir: Path, rtf: float = 0.5, progress: Progress = 
     if owns:
         rclpy.init()
     node = rclpy.create_node('activesurv_replayer')
-    # Transient local matches every subscriber (latched blackboard ones and volatile ones).
-    qos = QoSProfile(
+    # Each topic is offered again with the QoS its publishers offered when it was recorded (as
+    # ``ros2 bag play`` does); a bag that did not record them gets reliable + transient local,
+    # which matches every subscriber.
+    faithful = isinstance(info.get('recorder'), dict) and info['recorder'].get('qos') == 'offered'
+    recorded = offered_qos(bag) if faithful else {}  # older bags noted a guess
+    fallback = QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=50,
         reliability=ReliabilityPolicy.RELIABLE,
@@ -111,6 +121,7 @@ def run_replay(bag: Path, out_dir: Path, rtf: float = 0.5, progress: Progress = 
     pubs: dict[str, Any] = {}
     for m in messages:
         if m.topic not in pubs:
+            qos = playback_qos(recorded.get(m.topic, []), fallback)
             pubs[m.topic] = node.create_publisher(message_class(m.msgtype), m.topic, qos)
     clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
     launcher = Launcher(specs, workdir=out_dir / 'logs', env=dict(os.environ))

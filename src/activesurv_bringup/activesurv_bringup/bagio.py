@@ -348,12 +348,14 @@ def run_info(path: Path) -> dict[str, Any]:
     raise BagError(f'bag {path} has no {RUN_INFO_TOPIC} message (not an activesurv run?)')
 
 
-def recording_qos(publishers: Sequence[Any]) -> tuple[Any, list[Any]]:
+def recording_qos(publishers: Sequence[Any], depth: int | None = None) -> tuple[Any, list[Any]]:
     """How to subscribe to a topic with these publishers (rclpy ``TopicEndpointInfo``), and the
     QoS profiles they offer, for the bag's metadata (what ``ros2 bag play`` offers again).
 
     The subscription is reliable only if they all are, transient local only if they all are
-    (so latched blackboard topics arrive too), and deep enough for their history.
+    (so latched blackboard topics arrive too), and deep enough for their history. Discovery
+    does not tell a publisher's depth (it reports 0); ``depth`` (the graph's contract, see
+    ``activesurv_common.ros.qos.PUBLISHED``) fills it in, else 10, the rclpy default.
     """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
@@ -385,7 +387,7 @@ def recording_qos(publishers: Sequence[Any]) -> tuple[Any, list[Any]]:
         offered.append(
             Qos(
                 QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
-                int(q.depth),
+                int(q.depth) or depth or 10,
                 QosReliability.RELIABLE
                 if q.reliability == ReliabilityPolicy.RELIABLE
                 else QosReliability.BEST_EFFORT,

@@ -124,7 +124,7 @@ class RecorderNode(Node):
 
     def _qos(self, topic: str) -> tuple[QoSProfile, Any] | None:
         publishers = self.get_publishers_info_by_topic(topic)
-        return recording_qos(publishers) if publishers else None
+        return recording_qos(publishers, qos.published_depth(topic)) if publishers else None
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():

@@ -49,3 +49,38 @@ CLOCK_SUBSCRIBER = _profile(1, reliable=False)
 DIAGNOSTICS = _profile(10)
 # Small status topics of the tools (recorder status).
 STATUS = _profile(10)
+
+# What each topic of the graph is published with (global names; ``*`` matches a camera id).
+# DDS discovery does not carry a publisher's history depth (rclpy reports 0), so the recorder
+# takes the depth from here to note it in a bag, and replay offers it again.
+PUBLISHED: dict[str, QoSProfile] = {
+    '/clock': CLOCK,
+    '/object_state': STATE,
+    '/overhead/fix': STATE,
+    '/overhead/track': SENSOR,
+    '/demand_horizon': LATCHED,
+    '/dispatch_plan': LATCHED,
+    '/dispatch_markers': LATCHED,
+    '/capture_request': EVENTS_LATCHED,
+    '/marker_observations': EVENTS_LATCHED,
+    '/target_estimate': RESULTS,
+    '/target_pose': RESULTS,
+    '/diagnostics': DIAGNOSTICS,
+    '/*/image_raw': SENSOR_RELIABLE,
+    '/*/camera_info': SENSOR_RELIABLE,
+    '/*/stage/joint_states': STATE,
+    '/*/stage/goal': GOAL,
+    '/*/imager/heartbeat': SENSOR,
+    '/sim/planned_object_state': EVENTS,
+    '/sim/*/planned_joint_states': EVENTS,
+}
+
+
+def published_depth(topic: str) -> int | None:
+    """The history depth ``topic`` is published with in this graph, or None if not ours."""
+    parts = topic.split('/')
+    for pattern, profile in PUBLISHED.items():
+        pat = pattern.split('/')
+        if len(pat) == len(parts) and all(p in ('*', q) for p, q in zip(pat, parts, strict=True)):
+            return int(profile.depth)
+    return None

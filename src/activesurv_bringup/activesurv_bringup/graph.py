@@ -186,6 +186,7 @@ def graph_specs(
             'marker_radius': exp.setup.marker_radius,
             **mount_parameters(s),
             'reliable_images': True,
+            'exact_states': True,  # the simulated stages latch their state at each instant
         }
         if fault is not None and fault.kind is FaultKind.FROZEN:
             cam_params['inject_frozen'] = True

@@ -49,6 +49,11 @@ class TimeSeries:
             del self._v[0]
         return True
 
+    def has(self, t: float) -> bool:
+        """A sample stamped exactly ``t`` is held."""
+        i = bisect.bisect_left(self._t, t)
+        return i < len(self._t) and self._t[i] == t
+
     def at(self, t: float, hold: float = 0.0) -> NDArray[np.float64] | None:
         """The value at ``t``: interpolated between the samples around it, or the nearest sample
         if ``t`` is outside the history by at most ``hold`` seconds; otherwise None."""

@@ -50,6 +50,9 @@ class ImagerConfig:
         inject_bias_x: fault injection: m added to the world x of every estimate.
         inject_noise: fault injection: extra position noise (m, std).
         inject_flip: fault injection: take the wrong one of the two circle poses.
+        exact_state: wait (up to ``joint_hold`` past the frame) for a stage state stamped at
+            the frame's instant itself, as stages that latch their position on the trigger
+            publish (the simulated ones do): a replay then measures with the same state.
     """
 
     camera_id: str
@@ -60,6 +63,7 @@ class ImagerConfig:
     inject_bias_x: float = 0.0
     inject_noise: float = 0.0
     inject_flip: bool = False
+    exact_state: bool = False
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,15 @@ class CaptureCore(Generic[F]):
         staged = isinstance(self.mount, CameraMount)
         if staged and not timed_out and (latest is None or latest < stamp):
             return None  # wait for a stage state at or after the frame: interpolate, not hold
+        if (
+            staged
+            and c.exact_state
+            and not timed_out
+            and not self.joints.has(stamp)
+            and latest is not None
+            and latest < stamp + c.joint_hold
+        ):
+            return None  # the latched state of the instant is on its way
         T = self.camera_pose(stamp)
         if T is None:
             if timed_out or (latest is not None and latest > stamp + 1.0):

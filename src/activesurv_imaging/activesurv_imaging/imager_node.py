@@ -51,6 +51,7 @@ PARAMS = (
     Param('frame_timeout', 1.0, 's after the demand instant to wait for a frame', above=0.0),
     Param('joint_hold', 0.2, 's a stage state may be held beyond its stamp', above=0.0),
     Param('reliable_images', False, 'subscribe to images reliably (publisher must be)'),
+    Param('exact_states', False, 'wait for a stage state stamped at the frame (trigger latch)'),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
     Param('inject_flip', False, 'fault: take the wrong circle pose'),
@@ -76,6 +77,7 @@ class ImagerNode(Node):
             float(v['inject_bias_x']),
             float(v['inject_noise']),
             bool(v['inject_flip']),
+            bool(v['exact_states']),
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)

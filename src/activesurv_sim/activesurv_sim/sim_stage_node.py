@@ -129,12 +129,14 @@ class SimStageNode(Node):
         if timer is not None:
             timer.cancel()
             self.destroy_timer(timer)
-        self._publish()
+        # The state at the instant itself, even if this timer fired a tick late (a latched
+        # encoder reading), so that camera and imager find a sample stamped exactly t.
+        self._publish(min(t, self._now()))
         self._triggers = {k: v for k, v in self._triggers.items() if k > t - 60.0}
         self._triggers[t] = None
 
-    def _publish(self) -> None:
-        now = self._now()
+    def _publish(self, at: float | None = None) -> None:
+        now = self._now() if at is None else at
         states = [self.axes[j].state(now) for j in self.joints]
         self._pub.publish(
             joint_state(

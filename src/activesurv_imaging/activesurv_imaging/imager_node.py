@@ -50,7 +50,7 @@ PARAMS = (
     Param('frame_tolerance', 0.005, 'max |frame stamp - demand instant| (s)', above=0.0),
     Param('frame_timeout', 1.0, 's after the demand instant to wait for a frame', above=0.0),
     Param('joint_hold', 0.2, 's a stage state may be held beyond its stamp', above=0.0),
-    Param('reliable_images', False, 'subscribe to images reliably (publisher must be)'),
+    Param('reliable_images', False, 'images and stage states reliably (publishers must be)'),
     Param('exact_states', False, 'wait for a stage state stamped at the frame (trigger latch)'),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
@@ -104,8 +104,11 @@ class ImagerNode(Node):
             CameraInfo, topics.camera_info(self.camera_id), self._on_info, qos.SENSOR
         )
         if self.core.joint_names:
+            # Reliable with the simulator and replays: the state latched at a demand instant
+            # must not be dropped in a burst (a replay then measured with another pose).
+            state_qos = qos.STATE if v['reliable_images'] else qos.SENSOR
             self.create_subscription(
-                JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
+                JointState, topics.joint_states(self.camera_id), self._on_joints, state_qos
             )
         self.create_timer(0.05, self._on_tick)
         self.create_timer(0.1, self._beat)

@@ -6,13 +6,23 @@ from activesurv_common.geometry import quaternion_from_normal
 from activesurv_common.ros.conversions import sec_to_time
 from activesurv_interfaces.msg import DemandHorizon, DemandPoint
 from activesurv_prediction.demands import DemandPrediction
-from activesurv_prediction.tracker import TrackState
+from activesurv_prediction.tracker import MotionSummary, TrackState
 
 
 def horizon_to_msg(
-    predictions: list[DemandPrediction], state: TrackState, stamp: float, frame_id: str
+    predictions: list[DemandPrediction],
+    state: TrackState,
+    stamp: float,
+    frame_id: str,
+    motion: MotionSummary | None = None,
 ) -> DemandHorizon:
     msg = DemandHorizon()
+    if motion is not None:
+        msg.mode_names = list(motion.mode_names)
+        msg.mode_probabilities = [float(v) for v in motion.probabilities]
+        msg.motion = motion.regime
+        msg.manoeuvre = bool(motion.manoeuvre)
+        msg.manoeuvre_count = int(motion.manoeuvre_count)
     msg.header.stamp = sec_to_time(stamp)
     msg.header.frame_id = frame_id
     msg.track_state = int(state.value)

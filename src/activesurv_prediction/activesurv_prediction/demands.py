@@ -20,8 +20,8 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_prediction.base import Predictor
 from activesurv_prediction.errors import PredictionError
-from activesurv_prediction.predictor import TargetPredictor
 from activesurv_prediction.tracker import Tracker, TrackState
 
 Array = NDArray[np.float64]
@@ -109,7 +109,7 @@ class DemandPrediction:
 
 
 def predict_demands(
-    predictor: TargetPredictor,
+    predictor: Predictor,
     schedule: DemandSchedule,
     geometry: TargetGeometry,
     top_height: float,
@@ -125,18 +125,18 @@ def predict_demands(
 
 
 def crossing_time(
-    predictor: TargetPredictor, x: float, now: float, ahead: float = 20.0, step: float = 0.2
+    predictor: Predictor, x: float, now: float, ahead: float = 20.0, step: float = 0.2
 ) -> float | None:
     """The first instant after ``now`` at which the predicted path crosses the line x = ``x``,
     within ``ahead`` seconds, or None."""
     if predictor.last_time is None:
         return None
     t0 = max(now, predictor.last_time)
-    f0 = float(predictor.predict(t0)[0][0]) - x
+    f0 = float(predictor.predict_mean(t0)[0]) - x
     t = t0
     while t < t0 + ahead:
         t1 = t + step
-        f1 = float(predictor.predict(t1)[0][0]) - x
+        f1 = float(predictor.predict_mean(t1)[0]) - x
         if f0 == 0.0:
             return t
         if f0 * f1 < 0.0:
@@ -207,7 +207,7 @@ class DemandBook:
         x0, x1, y0, y1 = self.region
         return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
 
-    def upcoming(self, predictor: TargetPredictor, now: float, m: int) -> list[tuple[int, float]]:
+    def upcoming(self, predictor: Predictor, now: float, m: int) -> list[tuple[int, float]]:
         """(index, instant) of the current object's next ``m`` demands after ``now``."""
         if self.object_id == 0 or self.entered is None or predictor.last_time is None:
             return []
@@ -235,13 +235,13 @@ class DemandBook:
             if key not in self._index:
                 self._index[key] = self._next_index
                 self._next_index += 1
-            if self._inside(predictor.predict(t)[0]):
+            if self._inside(predictor.predict_mean(t)):
                 out.append((self._index[key], t))
         return out
 
 
 def predict_points(
-    predictor: TargetPredictor,
+    predictor: Predictor,
     upcoming: Sequence[tuple[int, float]],
     geometry: TargetGeometry,
     top_height: float,
@@ -249,8 +249,8 @@ def predict_points(
 ) -> list[DemandPrediction]:
     """Predicted target poses at the given (index, instant) demands."""
     out = []
-    for j, t in upcoming:
-        mean, cov = predictor.predict(t)
+    predicted = predictor.predict_many([t for _, t in upcoming])
+    for (j, t), (mean, cov) in zip(upcoming, predicted, strict=True):
         pos = np.array([mean[0], mean[1], top_height]) + geometry.offset
         C = np.zeros((6, 6))
         C[:2, :2] = cov

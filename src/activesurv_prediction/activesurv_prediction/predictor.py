@@ -1,137 +1,136 @@
-"""Kalman predictor of the object's planar position (paper Section III-B).
+"""The object's planar position predictor (paper Section III-B), manoeuvre-aware (pure core).
 
-Motion model: constant acceleration per axis, driven by piecewise-constant white jerk (filterpy)::
+The paper predicts with one Kalman filter; its objects move on lines and parabolas. Objects in
+a cell also stop, turn back and change speed, and a single constant-acceleration filter then
+claims a certainty it does not have (round 1: the truth 2 s ahead inside its 3-sigma ellipse
+65 % of the time on an object that stops). :class:`TargetPredictor` is an IMM over a stationary,
+a constant-velocity and a constant-acceleration mode (:mod:`activesurv_prediction.imm`).
 
-    x = [p_x, v_x, a_x, p_y, v_y, a_y]^T                         (6,)
-    F(dt) = blkdiag(F1, F1),  F1 = [[1, dt, dt^2/2], [0, 1, dt], [0, 0, 1]]     (6, 6)
-    H = [[1, 0, 0, 0, 0, 0], [0, 0, 0, 1, 0, 0]]                   (2, 6)
-    Q(dt) = blkdiag(Q1, Q1),  Q1 = q g g^T, g = (dt^2/2, dt, 1)  (Q_discrete_white_noise)
-    R = sigma_z^2 I                                                 (2, 2)
+What a prediction at ``t`` reports:
 
-Why constant acceleration: the paper's paths are straight lines and parabolas. A parabola
-driven at constant x-speed has constant y-acceleration, and at constant path speed an
-acceleration that turns slowly. Constant velocity would miss ``a t^2 / 2`` (about 5-10 mm
-two seconds ahead at 20 mm/s). The jerk noise ``q`` lets the acceleration follow curves,
-stops and speed changes. Its default comes from the consistency benchmark (README,
-"Prediction").
+* the mean: the modes' own extrapolations weighted by their probabilities now (what the object
+  does if it keeps doing what it does); on the paper's lines and parabolas this is as accurate
+  as the single filter;
+* the covariance: the expected squared error of that mean over every way the mode may change
+  before ``t`` (:func:`activesurv_prediction.imm.propagate_moments`). An object may stop, or
+  start, within the next two seconds, and the ellipse says so.
 
-Outliers: a fix whose innovation has a squared Mahalanobis distance above ``gate``
-(chi-square, 2 dof; 50 by default: a wrong detection is far out, while real fixes after a gap in
-the frame stream can be several sigma off a constant-acceleration extrapolation) is rejected and
-does not touch the state. After ``max_rejections``
-rejections in a row the object has really manoeuvred: the filter restarts at the newest fix
-with its velocity kept and the uncertainty inflated.
+Outliers: a fix whose innovation (against the mixture's predicted fix) has a squared
+Mahalanobis distance above ``gate`` is rejected and does not touch the state; after
+``max_rejections`` in a row the filter restarts at the newest fix with the velocity the rejected
+fixes show (as the round-1 filter did).
+
+The round-1 filter stays as
+:class:`~activesurv_prediction.ca_predictor.ConstantAccelerationPredictor`
+(``make_predictor('ca')``)
+for comparison.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from activesurv_prediction import imm
+from activesurv_prediction.base import (
+    Array,
+    Predictor,
+    UpdateResult,
+    check_fix,
+    check_positive,
+    check_time,
+)
+from activesurv_prediction.ca_predictor import AxisFilter, ConstantAccelerationPredictor
 from activesurv_prediction.errors import PredictionError
 
-Array = NDArray[np.float64]
-
-H = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])
-
-
-def transition(dt: float) -> Array:
-    f = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    out = np.zeros((6, 6))
-    out[:3, :3] = f
-    out[3:, 3:] = f
-    return out
-
-
-def process_noise(dt: float, jerk_variance: float) -> Array:
-    """Piecewise-constant white jerk: ``var * g g^T`` with ``g = (dt^2/2, dt, 1)``, the closed
-    form of filterpy's ``Q_discrete_white_noise(dim=3)`` (written out: it is evaluated for every
-    demand on every update)."""
-    g = np.array([0.5 * dt * dt, dt, 1.0])
-    q = jerk_variance * np.outer(g, g)
-    out = np.zeros((6, 6))
-    out[:3, :3] = q
-    out[3:, 3:] = q
-    return out
-
-
-@dataclass(frozen=True)
-class UpdateResult:
-    """What one fix did.
-
-    Attributes:
-        accepted: the fix updated the state (False: gated out as an outlier).
-        mahalanobis2: squared Mahalanobis distance of the innovation (NaN on the first fix).
-        restarted: this fix restarted the filter after a run of rejections.
-    """
-
-    accepted: bool
-    mahalanobis2: float
-    restarted: bool = False
+__all__ = ['PREDICTORS', 'TargetPredictor', 'UpdateResult', 'make_predictor']
 
 
 class TargetPredictor:
-    """Kalman filter on overhead fixes of the top marker; predicts its (x, y) at any future time.
+    """IMM predictor of the top marker's (x, y) from overhead fixes.
 
     Args:
         measurement_std: std of one overhead fix, m (default 0.5 mm).
-        jerk_std: std of the white-noise jerk, m/s^3 (process noise).
+        modes: the motion modes and their switching (:class:`~activesurv_prediction.imm.ModeSet`).
         initial_velocity_std: prior std of the velocity at track start, m/s.
-        initial_acceleration_std: prior std of the acceleration at track start, m/s^2.
+        initial_probabilities: mode probabilities (S, CV, CA) at track start.
         gate: chi-square (2 dof) threshold on the innovation; 0 disables gating.
         max_rejections: consecutive rejections after which the filter restarts.
+        substeps: steps a prediction is cut into; the mode may switch between them.
     """
 
     def __init__(
         self,
         measurement_std: float = 0.5e-3,
-        jerk_std: float = 2e-4,
+        modes: imm.ModeSet | None = None,
         initial_velocity_std: float = 0.03,
-        initial_acceleration_std: float = 0.01,
+        initial_probabilities: Sequence[float] = (0.2, 0.5, 0.3),
         gate: float = 50.0,
         max_rejections: int = 8,
+        substeps: int = 6,
+        reference_jerk_std: float = 7e-5,
     ) -> None:
-        for name, value in (
-            ('measurement_std', measurement_std),
-            ('jerk_std', jerk_std),
-            ('initial_velocity_std', initial_velocity_std),
-            ('initial_acceleration_std', initial_acceleration_std),
-        ):
-            if not (math.isfinite(value) and value > 0.0):
-                raise PredictionError(f'{name} must be finite and > 0, got {value}')
+        check_positive(
+            measurement_std=measurement_std,
+            initial_velocity_std=initial_velocity_std,
+        )
+        mu0 = np.asarray(initial_probabilities, dtype=np.float64).reshape(-1)
+        if mu0.shape != (3,) or np.any(mu0 < 0.0) or not math.isclose(mu0.sum(), 1.0):
+            raise PredictionError('initial_probabilities: three numbers >= 0 summing to 1')
         if not (math.isfinite(gate) and gate >= 0.0):
             raise PredictionError(f'gate must be finite and >= 0, got {gate}')
         if max_rejections < 1:
             raise PredictionError(f'max_rejections must be >= 1, got {max_rejections}')
         self.measurement_std = float(measurement_std)
-        self.jerk_variance = float(jerk_std) ** 2
+        self.r = self.measurement_std**2
+        self.modes = modes or imm.ModeSet()
         self.initial_velocity_std = float(initial_velocity_std)
-        self.initial_acceleration_std = float(initial_acceleration_std)
+        self.mu0 = mu0
         self.gate = float(gate)
         self.max_rejections = int(max_rejections)
-        self.kf = KalmanFilter(dim_x=6, dim_z=2)
-        self.kf.H = H.copy()
-        self.kf.R = np.eye(2) * self.measurement_std**2
+        if substeps < 1:
+            raise PredictionError(f'substeps must be >= 1, got {substeps}')
+        self.substeps = int(substeps)
+        self.reference_jerk_std = float(reference_jerk_std)
+        self.reference = AxisFilter(self.measurement_std, self.reference_jerk_std)
+        self._reference_misses = 0
+        self.states: imm.ModeStates | None = None
         self.last_time: float | None = None
         self.updates = 0
         self.rejections = 0
         self.consecutive_rejections = 0
         self._rejected: list[tuple[float, Array]] = []
+        self._steps: dict[float, tuple[Array, Array, Array]] = {}
 
+    # -- state -------------------------------------------------------------------------------
     @property
     def initialized(self) -> bool:
         return self.last_time is not None
 
     @property
+    def mode_names(self) -> tuple[str, ...]:
+        return imm.MODE_NAMES
+
+    @property
+    def mode_probabilities(self) -> Array:
+        """Probabilities of S, CV, CA now (the initial ones before the first fix)."""
+        return (self.mu0 if self.states is None else self.states.mu).copy()
+
+    @property
     def state(self) -> Array:
-        return np.asarray(self.kf.x, dtype=np.float64).reshape(6).copy()
+        """The combined state mean (6,): ``[p_x, v_x, a_x, p_y, v_y, a_y]``."""
+        if self.states is None:
+            return np.zeros(6)
+        return self.states.combined()[0]
 
     def reset(self) -> None:
         """Forget the track."""
+        self.states = None
+        self._reference_misses = 0
         self.last_time = None
         self.updates = 0
         self.consecutive_rejections = 0
@@ -141,27 +140,25 @@ class TargetPredictor:
         self, t: float, xy: Array, velocity: Array | None = None, velocity_std: float | None = None
     ) -> None:
         v = np.zeros(2) if velocity is None else velocity
-        self.kf.x = np.array([xy[0], v[0], 0.0, xy[1], v[1], 0.0]).reshape(6, 1)
         v_std = self.initial_velocity_std if velocity_std is None else velocity_std
-        p = np.diag([self.measurement_std**2, v_std**2, self.initial_acceleration_std**2])
-        self.kf.P = np.zeros((6, 6))
-        self.kf.P[:3, :3] = p
-        self.kf.P[3:, 3:] = p
+        x = np.array([xy[0], v[0], 0.0, xy[1], v[1], 0.0])
+        p1 = np.diag([self.r, v_std**2, self.modes.acceleration_std**2])
+        P = np.zeros((6, 6))
+        P[:3, :3] = P[3:, 3:] = p1
+        xs = np.repeat(x[None, :], 3, axis=0)
+        xs[imm.STATIONARY, [1, 2, 4, 5]] = 0.0
+        Ps = np.repeat(P[None], 3, axis=0)
+        for i in (1, 4):
+            Ps[imm.STATIONARY, i, :] = Ps[imm.STATIONARY, :, i] = 0.0
+            Ps[imm.STATIONARY, i, i] = self.modes.restart_speed_std**2
+        self.states = imm.ModeStates(xs, Ps, self.mu0.copy())
+        self.reference.start(t, xy, v, v_std, self.modes.acceleration_std)
+        self._reference_misses = 0
         self.last_time = t
         self.consecutive_rejections = 0
         self._rejected.clear()
 
-    @staticmethod
-    def _check(t: float, xy: ArrayLike | None = None) -> Array | None:
-        if not isinstance(t, (int, float, np.floating)) or not math.isfinite(float(t)):
-            raise PredictionError(f'time must be a finite number of seconds, got {t!r}')
-        if xy is None:
-            return None
-        z = np.asarray(xy, dtype=np.float64).reshape(-1)
-        if z.shape != (2,) or not np.all(np.isfinite(z)):
-            raise PredictionError(f'xy must be two finite numbers (metres), got {xy!r}')
-        return z
-
+    # -- filtering ---------------------------------------------------------------------------
     def update(self, t: float, xy: ArrayLike) -> UpdateResult:
         """Add an overhead fix ``xy`` (world, m) taken at ``t`` (s).
 
@@ -169,10 +166,9 @@ class TargetPredictor:
             ValueError: (a :class:`PredictionError`) for non-finite input or a time before the
                 last update.
         """
-        z = self._check(t, xy)
-        assert z is not None
-        t = float(t)
-        if self.last_time is None:
+        t = check_time(t)
+        z = check_fix(xy)
+        if self.states is None or self.last_time is None:
             self._start(t, z)
             self.updates = 1
             return UpdateResult(True, math.nan)
@@ -182,23 +178,19 @@ class TargetPredictor:
                 'fixes must arrive in time order'
             )
         dt = t - self.last_time
+        predicted = self.states
         if dt > 0.0:
-            self.kf.F = transition(dt)
-            self.kf.Q = process_noise(dt, self.jerk_variance)
-            self.kf.predict()
+            predicted = imm.mix_and_predict(self.states, *self._step(dt))
+        self.states = predicted
         self.last_time = t
-        innovation = z - (H @ self.kf.x).reshape(2)
-        S = H @ self.kf.P @ H.T + self.kf.R
-        d2 = float(innovation @ np.linalg.solve(S, innovation))
+        updated, d2 = imm.update(predicted, z, self.r)
         if self.gate > 0.0 and d2 > self.gate:
             self.rejections += 1
             self.consecutive_rejections += 1
             self._rejected.append((t, z))
             if self.consecutive_rejections < self.max_rejections:
                 return UpdateResult(False, d2)
-            # Not an outlier but a manoeuvre: restart from the rejected fixes.
-            # The rejected fixes agree with each other: restart from them, with the velocity
-            # they show and an uncertainty from the fix noise, not the cold-start prior.
+            # Not an outlier but a jump: restart from the rejected fixes, which agree.
             (t0, z0), (t1, z1) = self._rejected[0], self._rejected[-1]
             span = t1 - t0
             v = (z1 - z0) / span if span > 0 else None
@@ -206,37 +198,113 @@ class TargetPredictor:
             self._start(t, z, v, v_std)
             self.updates += 1
             return UpdateResult(True, d2, restarted=True)
-        self.kf.update(z)
+        was_stopped = predicted.mu[imm.STATIONARY] >= 0.5
+        self.states = updated
+        self._update_reference(t, z, was_stopped)
         self.consecutive_rejections = 0
         self._rejected.clear()
         self.updates += 1
         return UpdateResult(True, d2)
 
-    def predict_state(self, t: float) -> tuple[Array, Array]:
-        """Full state mean (6,) and covariance (6, 6) at ``t`` (not stored).
+    def _update_reference(self, t: float, z: Array, was_stopped: bool) -> None:
+        """Feed the moving object's reference filter; restart it from the IMM's moving modes
+        when the object starts again or the reference no longer fits the fixes."""
+        assert self.states is not None
+        s = self.states
+        moving = s.mu[imm.STATIONARY] < 0.5
+        if moving and (was_stopped or self._reference_misses >= 3):
+            w = s.mu[1:] / max(float(s.mu[1:].sum()), 1e-300)
+            v = w @ s.x[1:, 1::3]
+            self.reference.start(t, z, v, 0.003, self.modes.acceleration_std)
+            self._reference_misses = 0
+            return
+        d2 = self.reference.update(t, z)
+        self._reference_misses = self._reference_misses + 1 if d2 > 16.0 else 0
 
-        Raises:
-            ValueError: before the first update, for a non-finite ``t`` or one before the last
-                update.
-        """
-        self._check(t)
-        if self.last_time is None:
+    def _step(self, dt: float) -> tuple[Array, Array, Array]:
+        """M, F, Q of a filter step (cached: fixes come at a steady rate)."""
+        key = round(dt, 9)
+        hit = self._steps.get(key)
+        if hit is None:
+            F, Q = self.modes.models(dt)
+            hit = (self.modes.transition(dt), F, Q)
+            if len(self._steps) > 64:
+                self._steps.clear()
+            self._steps[key] = hit
+        return hit
+
+    # -- prediction --------------------------------------------------------------------------
+    def _ready(self, times: Sequence[float]) -> tuple[imm.ModeStates, float, list[float]]:
+        ts = [check_time(t) for t in times]
+        if self.states is None or self.last_time is None:
             raise PredictionError('no fix yet: update() at least once before predicting')
-        dt = float(t) - self.last_time
-        if dt < 0.0:
-            raise PredictionError(
-                f'cannot predict at {float(t):.6f} s, before the last update at '
-                f'{self.last_time:.6f} s'
-            )
-        x = np.asarray(self.kf.x, dtype=np.float64).reshape(6)
-        P = np.asarray(self.kf.P, dtype=np.float64)
-        if dt > 0.0:
-            F = transition(dt)
-            x = F @ x
-            P = F @ P @ F.T + process_noise(dt, self.jerk_variance)
-        return x, 0.5 * (P + P.T)
+        for t in ts:
+            if t < self.last_time:
+                raise PredictionError(
+                    f'cannot predict at {t:.6f} s, before the last update at '
+                    f'{self.last_time:.6f} s'
+                )
+        return self.states, self.last_time, ts
+
+    def _means(self, s: imm.ModeStates, leads: Array) -> Array:
+        """(K, 2): the likelier regime's extrapolation ``leads`` ahead: at rest if the
+        stationary mode is likelier than not, else the reference filter's."""
+        x = s.x[imm.STATIONARY]
+        if s.mu[imm.STATIONARY] >= 0.5:
+            out: Array = np.broadcast_to(x[::3], (len(leads), 2)).copy()
+            return out
+        return self.reference.extrapolate(leads)
+
+    def predict_mean(self, t: float) -> Array:
+        """The predicted (x, y) at ``t`` if every mode keeps on (cheap: no covariance)."""
+        s, t0, (t,) = self._ready([t])
+        out: Array = self._means(s, np.array([t - t0]))[0]
+        return out
 
     def predict(self, t: float) -> tuple[Array, Array]:
         """Predicted (x, y) mean (2,) and its 2x2 covariance at ``t`` >= the last update."""
-        x, P = self.predict_state(t)
-        return H @ x, H @ P @ H.T
+        return self.predict_many([t])[0]
+
+    def predict_many(self, times: Sequence[float]) -> list[tuple[Array, Array]]:
+        """:meth:`predict` at several instants in one sweep (the demand horizon).
+
+        Raises:
+            ValueError: before the first update, for a non-finite time or one before the last
+                update.
+        """
+        s, t0, ts = self._ready(times)
+        if not ts:
+            return []
+        leads = np.array(ts) - t0
+        origin = s.mu @ s.x[:, ::3]
+        means = self._means(s, leads) - origin
+        moments = imm.propagate_moments(s, self.modes, leads, self.substeps, origin)
+        ezz, ez = moments[:, :2, :2], moments[:, :2, 2]
+        mm = means[:, :, None] * means[:, None, :]
+        cov = ezz - ez[:, :, None] * means[:, None, :] - means[:, :, None] * ez[:, None, :] + mm
+        cov = 0.5 * (cov + cov.transpose(0, 2, 1))
+        return [(means[i] + origin, cov[i]) for i in range(len(ts))]
+
+
+def _ca(**kwargs: Any) -> Predictor:
+    allowed = {'measurement_std', 'jerk_std', 'gate'}
+    return ConstantAccelerationPredictor(**{k: v for k, v in kwargs.items() if k in allowed})
+
+
+def _imm(**kwargs: Any) -> Predictor:
+    allowed = {'measurement_std', 'gate'}
+    return TargetPredictor(**{k: v for k, v in kwargs.items() if k in allowed})
+
+
+PREDICTORS = {'imm': _imm, 'ca': _ca}
+
+
+def make_predictor(kind: str = 'imm', **kwargs: Any) -> Predictor:
+    """A predictor by name: ``imm`` (the default, :class:`TargetPredictor`) or ``ca`` (round 1).
+
+    Raises:
+        PredictionError: for an unknown kind.
+    """
+    if kind not in PREDICTORS:
+        raise PredictionError(f'predictor must be one of {sorted(PREDICTORS)}, got {kind!r}')
+    return PREDICTORS[kind](**kwargs)

@@ -25,8 +25,8 @@ from activesurv_interfaces.msg import DemandHorizon
 from activesurv_prediction.conversions import horizon_to_msg
 from activesurv_prediction.demands import TargetGeometry, demand_source, predict_demands
 from activesurv_prediction.errors import PredictionError
-from activesurv_prediction.predictor import TargetPredictor
-from activesurv_prediction.tracker import Tracker, TrackState, Workspace
+from activesurv_prediction.predictor import make_predictor
+from activesurv_prediction.tracker import Tracker, TrackState, Workspace, fix_statistics
 
 
 def _workspace_problem(v: Any) -> str | None:
@@ -60,7 +60,8 @@ PARAMS = (
     Param('demand_freeze', 1.0, 'lines mode: s before a crossing when it stops moving', above=0.0),
     Param('horizon', 5, 'demands on the rolling horizon (m)', minimum=1),
     Param('measurement_std', 0.5e-3, 'overhead fix std (m)', above=0.0),
-    Param('jerk_std', 2e-4, 'process noise (m/s^3)', above=0.0),
+    Param('model', 'imm', 'imm (manoeuvre-aware) or ca (round-1 filter)', choices=('imm', 'ca')),
+    Param('jerk_std', 2e-4, 'ca model: process noise (m/s^3)', above=0.0),
     Param('gate', 50.0, 'chi-square outlier gate (2 dof)', above=0.0),
     Param('confirm_fixes', 10, 'fixes to confirm a track', minimum=1),
     Param('lost_timeout', 1.0, 'unseen s before track loss', above=0.0),
@@ -74,6 +75,9 @@ PARAMS = (
     Param('side_marker_normal', [0.0, -1.0, 0.0], 'side marker normal (world)'),
     Param('frame_id', 'world', 'frame of the horizon'),
 )
+
+
+DIAG = (topics.DIAGNOSTICS, qos.DIAGNOSTICS)
 
 
 class PredictorNode(Node):
@@ -93,7 +97,8 @@ class PredictorNode(Node):
         )
         self.geometry = TargetGeometry.create(v['side_marker_offset'], v['side_marker_normal'])
         self.tracker = Tracker(
-            TargetPredictor(
+            make_predictor(
+                str(v['model']),
                 measurement_std=float(v['measurement_std']),
                 jerk_std=float(v['jerk_std']),
                 gate=float(v['gate']),
@@ -115,9 +120,7 @@ class PredictorNode(Node):
             DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED
         )
         self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
-        self._diag_pub = self.create_publisher(
-            diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
-        )
+        self._diag_pub = self.create_publisher(diagnostics.DiagnosticArray, *DIAG)
         self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
         self.create_timer(0.1, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
@@ -152,15 +155,13 @@ class PredictorNode(Node):
             for text in events:
                 self.get_logger().info(text)
         elif state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
-            preds = predict_demands(
-                self.tracker.predictor,
-                self.schedule,
-                self.geometry,
-                self.marker_height,
-                now,
-                self.horizon,
-            )
-        self._horizon_pub.publish(horizon_to_msg(preds, state, now, self.frame_id))
+            p, h = self.tracker.predictor, self.horizon
+            preds = predict_demands(p, self.schedule, self.geometry, self.marker_height, now, h)
+        self._horizon_pub.publish(
+            horizon_to_msg(preds, state, now, self.frame_id, self.tracker.motion())
+        )
+        if self.tracker.manoeuvre:
+            self.get_logger().info(f'manoeuvre: the object is {self.tracker.manoeuvres.regime}')
         if state is not self._last_state:
             self.get_logger().info(f'track {self._last_state.name} -> {state.name}')
             self._last_state = state
@@ -172,19 +173,16 @@ class PredictorNode(Node):
 
     def _publish_diagnostics(self) -> None:
         state = self.tracker.state
-        ts = list(self._fix_times)
-        rate = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else 0.0
-        inn = np.array(self._innovations) if self._innovations else np.array([math.nan])
-        values = {
-            'track_state': state.name,
-            'update_rate_hz': f'{rate:.1f}',
-            'fixes': self._fixes,
-            'bad_fixes': self._bad_fixes,
-            'innovation_d2_mean': f'{float(np.mean(inn)):.2f}',
-            'innovation_d2_p95': f'{float(np.percentile(inn, 95)):.2f}',
-            'outliers_rejected': self.tracker.predictor.rejections,
-            'tracks_started': self.tracker.tracks_started,
-        }
+        values = fix_statistics(list(self._fix_times), list(self._innovations))
+        values.update(
+            track_state=state.name,
+            fixes=self._fixes,
+            bad_fixes=self._bad_fixes,
+            outliers_rejected=self.tracker.predictor.rejections,
+            tracks_started=self.tracker.tracks_started,
+            motion=self.tracker.manoeuvres.regime or '-',
+            manoeuvres=self.tracker.manoeuvres.count,
+        )
         level = diagnostics.OK if state is TrackState.CONFIRMED else diagnostics.WARN
         s = diagnostics.status(
             'activesurv/predictor', 'predictor', f'track {state.name}', values, level

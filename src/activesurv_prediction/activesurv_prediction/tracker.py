@@ -17,8 +17,10 @@ from enum import Enum
 import numpy as np
 from numpy.typing import ArrayLike
 
+from activesurv_prediction.base import Predictor, UpdateResult
 from activesurv_prediction.errors import PredictionError
-from activesurv_prediction.predictor import TargetPredictor, UpdateResult
+from activesurv_prediction.manoeuvre import ManoeuvreDetector
+from activesurv_prediction.predictor import TargetPredictor
 
 
 class TrackState(Enum):
@@ -56,12 +58,23 @@ class Workspace:
         )
 
 
+@dataclass(frozen=True)
+class MotionSummary:
+    """What the predictor makes of the object's motion now (for the horizon message)."""
+
+    mode_names: tuple[str, ...] = ()
+    probabilities: tuple[float, ...] = ()
+    regime: str = ''
+    manoeuvre: bool = False
+    manoeuvre_count: int = 0
+
+
 class Tracker:
     """Track life cycle of the object seen by the overhead camera."""
 
     def __init__(
         self,
-        predictor: TargetPredictor | None = None,
+        predictor: Predictor | None = None,
         workspace: Workspace | None = None,
         confirm_fixes: int = 10,
         lost_timeout: float = 1.0,
@@ -69,7 +82,9 @@ class Tracker:
     ) -> None:
         if confirm_fixes < 1 or not (math.isfinite(lost_timeout) and lost_timeout > 0):
             raise PredictionError('confirm_fixes must be >= 1 and lost_timeout > 0')
-        self.predictor = predictor or TargetPredictor()
+        self.predictor: Predictor = predictor or TargetPredictor()
+        self.manoeuvres = ManoeuvreDetector()
+        self.manoeuvre = False  # the last fix showed a manoeuvre
         self.workspace = workspace or Workspace()
         self.confirm_fixes = confirm_fixes
         self.lost_timeout = lost_timeout
@@ -88,6 +103,7 @@ class Tracker:
             if not self.workspace.contains(z):
                 return None
             self.predictor.reset()
+            self.manoeuvres.reset()
             self.state = TrackState.TENTATIVE
             self.tracks_started += 1
             self.started_at = t
@@ -97,11 +113,26 @@ class Tracker:
         if self.predictor.last_time is not None and t < self.predictor.last_time:
             return None  # a stale frame: drop it rather than break the time order
         result = self.predictor.update(t, z)
+        self.manoeuvre = self.manoeuvres.update(
+            self.predictor.mode_probabilities, result.restarted
+        )
         if result.accepted:
             self.last_seen = t
         if self.state is TrackState.TENTATIVE and self.predictor.updates >= self.confirm_fixes:
             self.state = TrackState.CONFIRMED
         return result
+
+    def motion(self) -> MotionSummary:
+        """The mode probabilities, regime and manoeuvres of the current track."""
+        if self.state not in (TrackState.TENTATIVE, TrackState.CONFIRMED):
+            return MotionSummary(self.predictor.mode_names)
+        return MotionSummary(
+            self.predictor.mode_names,
+            tuple(float(v) for v in self.predictor.mode_probabilities),
+            self.manoeuvres.regime,
+            self.manoeuvre,
+            self.manoeuvres.count,
+        )
 
     def check_timeout(self, now: float) -> bool:
         """Lose the track if the object has not been seen for ``lost_timeout``; True if lost."""
@@ -114,3 +145,16 @@ class Tracker:
     def lose(self) -> None:
         self.state = TrackState.LOST
         self.predictor.reset()
+
+
+def fix_statistics(fix_times: list[float], innovations: list[float]) -> dict[str, object]:
+    """Diagnostics of the recent fixes: their rate and the innovations' squared Mahalanobis
+    distances (mean and 95th percentile; a consistent filter has mean 2)."""
+    ts = fix_times
+    rate = (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 1 and ts[-1] > ts[0] else 0.0
+    inn = np.array(innovations) if innovations else np.array([math.nan])
+    return {
+        'update_rate_hz': f'{rate:.1f}',
+        'innovation_d2_mean': f'{float(np.mean(inn)):.2f}',
+        'innovation_d2_p95': f'{float(np.percentile(inn, 95)):.2f}',
+    }

@@ -101,7 +101,7 @@ def test_a_wrong_detection_does_not_drag_the_track() -> None:
 
 def test_contract() -> None:
     p = TargetPredictor(measurement_std=1e-3)
-    assert p.kf.R[0, 0] == pytest.approx(1e-6)
+    assert p.r == pytest.approx(1e-6)
     with pytest.raises(ValueError, match='no fix yet'):
         p.predict(1.0)
     p.update(1.0, (0.1, 0.2))
@@ -171,7 +171,7 @@ def test_demand_schedule_and_horizon() -> None:
 def test_process_noise_matches_filterpy(dt: float) -> None:
     from filterpy.common import Q_discrete_white_noise
 
-    from activesurv_prediction.predictor import process_noise
+    from activesurv_prediction.ca_predictor import process_noise
 
     q = process_noise(dt, 4e-8)
     assert np.allclose(q[:3, :3], Q_discrete_white_noise(dim=3, dt=dt, var=4e-8), rtol=1e-12)

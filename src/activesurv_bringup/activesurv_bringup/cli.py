@@ -3,7 +3,7 @@
 ::
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
-        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
+        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--predictor {imm,ca}] [--expect {parabolic,diagonal,PATH.csv}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
         [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
         [--hosts {single,netns}]
@@ -54,6 +54,12 @@ def _build_parser() -> argparse.ArgumentParser:
     exp.add_argument('--seed', type=int, default=0)
     exp.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
     exp.add_argument('--trajectory', help='CSV t,x,y replacing the object path')
+    exp.add_argument(
+        '--predictor',
+        choices=('imm', 'ca'),
+        default='imm',
+        help='imm: manoeuvre-aware (default); ca: the round-1 constant-acceleration filter',
+    )
     exp.add_argument('--expect', help='parabolic, diagonal or a CSV: the path placement assumes')
     exp.add_argument(
         '--fault',
@@ -189,6 +195,7 @@ def experiment(
     trajectory: str | None = None,
     expect: str | None = None,
     options: RunOptions | None = None,
+    predictor: str = 'imm',
 ) -> dict[str, Any]:
     """Run one experiment into ``out`` (new or empty); returns its results document.
 
@@ -202,6 +209,7 @@ def experiment(
     if opts.kills and mode != 'graph':
         raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
     exp = load_experiment(set_name, system, seed, trajectory, expect)
+    exp.config['predictor']['model'] = predictor
     new_output_dir(out)
     started = time.monotonic()
 
@@ -220,7 +228,12 @@ def experiment(
             set_name,
             system,
             records,
-            {'seed': seed, 'mode': 'lockstep', 'faults': [str(f) for f in opts.faults]},
+            {
+                'seed': seed,
+                'mode': 'lockstep',
+                'predictor': predictor,
+                'faults': [str(f) for f in opts.faults],
+            },
         )
         write_results(out / 'results.json', doc)
     elif opts.hosts == 'netns':
@@ -365,6 +378,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.trajectory,
                 args.expect,
                 run_options(args),
+                args.predictor,
             )
         elif args.command == 'surveil':
             from activesurv_bringup.surveil import SurveilOptions, parse_demand_at

@@ -124,6 +124,7 @@ class Experiment:
             'set': self.set_name,
             'system': self.system,
             'seed': self.seed,
+            'predictor': str(self.config['predictor'].get('model', 'imm')),
             'demand_times': list(self.demand_times),
             'initial_poses': {c: [float(v) for v in q] for c, q in self.setup.initial.items()},
         }

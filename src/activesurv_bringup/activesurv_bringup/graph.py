@@ -122,6 +122,7 @@ def graph_specs(
                 'horizon': int(pc['horizon']),
                 'measurement_std': float(pc['measurement_std']),
                 'jerk_std': float(pc['jerk_std']),
+                'model': str(pc.get('model', 'imm')),
                 'confirm_fixes': int(pc['confirm_fixes']),
                 'side_marker_offset': [float(v) for v in obj['side_offset']],
                 'side_marker_normal': [float(v) for v in obj['side_normal']],

@@ -38,7 +38,7 @@ from activesurv_imaging.capture import CaptureCore, ImagerConfig
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
-from activesurv_prediction.predictor import TargetPredictor
+from activesurv_prediction.predictor import make_predictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace
 from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.sim_camera import ObjectGeometry, object_scene
@@ -93,8 +93,10 @@ def run_lockstep(
     over_renderer = Renderer(over_cam)
     pc = cfg['predictor']
     tracker = Tracker(
-        TargetPredictor(
-            measurement_std=float(pc['measurement_std']), jerk_std=float(pc['jerk_std'])
+        make_predictor(
+            str(pc.get('model', 'imm')),
+            measurement_std=float(pc['measurement_std']),
+            jerk_std=float(pc['jerk_std']),
         ),
         Workspace(),
         confirm_fixes=int(pc['confirm_fixes']),
@@ -160,7 +162,7 @@ def run_lockstep(
                 horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
         for c, cam in cameras.items():
             dispatcher.on_joints(c, cam.joints(t), t)
-        out = dispatcher.set_horizon(horizon, t)
+        out = dispatcher.set_horizon(horizon, t, manoeuvres=tracker.manoeuvres.count)
         out.merge(dispatcher.tick(t, serviced_until=t + dt - 1e-9))
         for cmd in out.goals:
             for ax, goal, v in zip(

@@ -90,6 +90,7 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
         {
             'seed': info.get('seed'),
             'mode': info.get('mode', 'graph'),
+            'predictor': info.get('predictor', 'ca'),
             'faults': info.get('faults', []),
         },
     )

@@ -126,7 +126,8 @@ class DispatcherNode(Node):
     def _on_horizon(self, msg: DemandHorizon) -> None:
         demands = horizon_to_demands(msg)
         dropped = len(msg.demands) - len(demands)
-        self._publish(self.session.set_horizon(demands, self._now(), dropped))
+        now = self._now()
+        self._publish(self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count))
 
     def _on_tick(self) -> None:
         self._publish(self.session.tick(self._now()))

@@ -22,7 +22,9 @@ On every new rolling horizon, :meth:`DispatchPlanner.plan`:
 2. **Preassignment and prepositioning** (II-C). Cameras not assigned to the first demand go to
    the next demands in turn, up to k per demand, until all are placed or the horizon ends. They
    are re-planned on every horizon.
-3. **Replanning** (II-D). When the new prediction of an assigned demand leaves the box
+3. **Replanning** (II-D). When the predictor reports a manoeuvre (the object stopped, started
+   or began to accelerate: :meth:`manoeuvre`), or when the new prediction of an assigned
+   demand leaves the box
    ``|delta| <= rho * sigma`` (x, y, z) around the prediction used at assignment, the desired
    poses of its cameras are recomputed, and that prediction becomes the new reference. Ours in
    addition: also when an assigned camera's desired pose would not keep the new prediction in
@@ -163,6 +165,7 @@ class DispatchPlanner:
         self._frozen: dict[int, _Frozen] = {}
         self._serviced: set[int] = set()
         self.replans = 0
+        self._manoeuvre = False
         self.excluded: set[str] = set()  # cameras judged dead: not dispatched
         self._closed: set[int] = set()  # demands whose capture request has gone out
 
@@ -275,7 +278,14 @@ class DispatchPlanner:
         return out
 
     # -- planning ----------------------------------------------------------------------------
+    def manoeuvre(self) -> None:
+        """The predictor saw the object manoeuvre: the next plan replans the first demand's
+        poses as if its prediction had left the box."""
+        self._manoeuvre = True
+
     def _replan_needed(self, frozen: _Frozen, new: Demand, alive: list[str]) -> bool:
+        if self._manoeuvre:
+            return True
         delta = np.abs(new.position - frozen.reference.position)
         if bool(np.any(delta > self.rho * frozen.reference.sigma())):
             return True
@@ -341,6 +351,7 @@ class DispatchPlanner:
                     frozen.reference = first
                     self.replans += 1
                     replanned = True
+                self._manoeuvre = False
                 missing = self.k - len(alive)
                 spare = [c for c in cams if c not in frozen.cameras]
                 if missing > 0 and spare and first.index not in self._closed:

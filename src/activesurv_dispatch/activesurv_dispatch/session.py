@@ -95,6 +95,7 @@ class Dispatcher:
         self.plan: Plan | None = None
         self.plan_ms: list[float] = []
         self.counts: Counter[str] = Counter()
+        self._manoeuvres = 0
 
     # -- inputs ----------------------------------------------------------------------------
     def on_joints(self, camera_id: str, q: ArrayLike, now: float) -> Outputs:
@@ -112,9 +113,17 @@ class Dispatcher:
         """The imager of ``camera_id`` beat at ``now``."""
         self.beat_stamp[camera_id] = now
 
-    def set_horizon(self, demands: Sequence[Demand], now: float, dropped: int = 0) -> Outputs:
-        """A new rolling horizon; ``dropped`` malformed demands were left out of it."""
+    def set_horizon(
+        self, demands: Sequence[Demand], now: float, dropped: int = 0, manoeuvres: int = 0
+    ) -> Outputs:
+        """A new rolling horizon; ``dropped`` malformed demands were left out of it;
+        ``manoeuvres``: the predictor's manoeuvre count of this track (a change replans)."""
         self.counts['bad_demands'] += dropped
+        manoeuvred = manoeuvres != self._manoeuvres and manoeuvres > 0
+        self._manoeuvres = manoeuvres
+        if manoeuvred:
+            self.planner.manoeuvre()
+            self.counts['manoeuvres'] += 1
         # Continuous surveillance: a demand of an object that vanished from the horizon before
         # its capture request (the object left, or its point left the demand region) is
         # withdrawn, not failed. An experiment's demands are promised for good.
@@ -131,7 +140,10 @@ class Dispatcher:
         for d in demands:
             self.demands[d.index] = d
         self.horizon = list(demands)
-        return self._replan(now)
+        out = self._replan(now)
+        if manoeuvred:
+            out.events.append(('info', f'the object manoeuvred (t={now:.2f} s): replanning'))
+        return out
 
     # -- the work --------------------------------------------------------------------------
     def _replan(self, now: float) -> Outputs:

@@ -151,6 +151,37 @@ def test_replanning_only_outside_the_uncertainty_box() -> None:
     assert not np.allclose(moved.assignments[cam].desired, plan0.assignments[cam].desired)
 
 
+def test_a_manoeuvre_replans_inside_the_box() -> None:
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3, rho=1.0)
+    planner.plan(0.0, [_demand(0, 3.0, 0.25)], joints)
+    planner.manoeuvre()  # the predictor saw the object stop or start
+    replanned = planner.plan(0.2, [_demand(0, 3.0, 0.25 + 0.001)], joints)  # inside the box
+    assert replanned.replanned
+    assert planner.replans == 1
+    again = planner.plan(0.3, [_demand(0, 3.0, 0.25 + 0.001)], joints)
+    assert not again.replanned  # one manoeuvre, one replan
+
+
+def test_the_session_replans_when_the_manoeuvre_count_changes() -> None:
+    from activesurv_dispatch.session import Dispatcher, DispatcherConfig
+
+    setup = load_setup(motion='fast')
+    session = Dispatcher(setup, MODEL, DispatcherConfig())
+    for c, q in _aimed_joints('fast', 0.25).items():
+        session.on_joints(c, q, 0.0)
+    session.set_horizon([_demand(0, 3.0, 0.25)], 0.0, manoeuvres=0)
+    same = session.set_horizon([_demand(0, 3.0, 0.25)], 0.1, manoeuvres=0)
+    assert same.plan is not None
+    assert not same.plan.replanned
+    out = session.set_horizon([_demand(0, 3.0, 0.25)], 0.2, manoeuvres=1)
+    assert out.plan is not None
+    assert out.plan.replanned
+    assert any('manoeuvred' in text for _, text in out.events)
+    assert session.counts['manoeuvres'] == 1
+
+
 def test_dead_camera_is_not_dispatched() -> None:
     setup = load_setup(motion='fast')
     joints = _aimed_joints('fast', 0.25)

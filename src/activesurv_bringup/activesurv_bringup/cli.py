@@ -3,7 +3,8 @@
 ::
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
-        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--predictor {imm,ca}] [--expect {parabolic,diagonal,PATH.csv}]
+        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
+        [--predictor {imm,ca}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
         [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
         [--hosts {single,netns}]

@@ -98,6 +98,7 @@ class DemandRecord:
     status: str = 'not_captured'
     reason: str = ''
     latency: float | None = None
+    predictions: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def position_error(self) -> float | None:
@@ -132,7 +133,49 @@ class DemandRecord:
             'status': self.status,
             'reason': self.reason,
             'latency': self.latency,
+            'predictions': self.predictions,
         }
+
+
+PREDICTION_LEADS = (2.0, 0.3)  # s before the instant: planning, and the capture request
+
+
+class PredictionLog:
+    """The predicted demand points the dispatcher was given, to compare with the truth.
+
+    Keeps, per demand, every prediction (time made, side-marker position, xy covariance) and
+    picks for each lead of :data:`PREDICTION_LEADS` the latest made at least that long before
+    the instant.
+    """
+
+    def __init__(self) -> None:
+        self._log: dict[int, list[tuple[float, Array, Array]]] = {}
+
+    def add(self, made: float, index: int, position: ArrayLike, covariance: ArrayLike) -> None:
+        """A prediction of demand ``index`` made at ``made``; ``covariance`` is the 6x6 of
+        the demand point (only its xy block is kept)."""
+        c = np.asarray(covariance, dtype=np.float64).reshape(6, 6)[:2, :2].copy()
+        pos = np.asarray(position, dtype=np.float64).reshape(3).copy()
+        entries = self._log.setdefault(int(index), [])
+        if entries and entries[-1][0] == made:
+            entries[-1] = (made, pos, c)
+        else:
+            entries.append((made, pos, c))
+
+    def picks(self, index: int, instant: float) -> list[dict[str, Any]]:
+        out = []
+        for lead in PREDICTION_LEADS:
+            made = [e for e in self._log.get(int(index), []) if e[0] <= instant - lead + 1e-9]
+            if made:
+                t, pos, c = made[-1]
+                out.append(
+                    {
+                        'lead': round(instant - t, 4),
+                        'position': [float(v) for v in pos],
+                        'covariance_xy': [[float(v) for v in row] for row in c],
+                    }
+                )
+        return out
 
 
 def results_document(

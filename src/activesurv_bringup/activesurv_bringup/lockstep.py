@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_bringup.evaluation import DemandRecord, observed_visibility
+from activesurv_bringup.evaluation import DemandRecord, PredictionLog, observed_visibility
 from activesurv_bringup.experiment import Experiment
 from activesurv_bringup.faults import Fault, FaultKind, imager_injection
 from activesurv_common.camera_model import overhead_camera
@@ -144,6 +144,7 @@ def run_lockstep(
     z_sigma = float(cfg['fusion']['z_sigma'])
 
     records: dict[int, DemandRecord] = {}
+    predicted = PredictionLog()
     dt = 1.0 / float(cfg['overhead']['rate'])
     n_steps = int(np.ceil(exp.end_time / dt)) + 1
     for step in range(n_steps):
@@ -160,6 +161,7 @@ def run_lockstep(
                 tracker.predictor, schedule, target_geo, om.top_height, t, int(pc['horizon'])
             ):
                 horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
+                predicted.add(t, p.index, p.position, p.covariance)
         for c, cam in cameras.items():
             dispatcher.on_joints(c, cam.joints(t), t)
         out = dispatcher.set_horizon(horizon, t, manoeuvres=tracker.manoeuvres.count)
@@ -192,6 +194,7 @@ def run_lockstep(
                 status='not_captured',
                 reason='the demand passed before a track and an assignment existed',
             )
+        r.predictions = predicted.picks(d.index, d.time)
         out_records.append(r)
     return out_records
 

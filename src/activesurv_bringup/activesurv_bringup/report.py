@@ -29,6 +29,7 @@ from activesurv_bringup.bagio import read_bag, run_info
 from activesurv_bringup.errors import BagError
 from activesurv_bringup.evaluation import (
     DemandRecord,
+    PredictionLog,
     results_document,
     summary,
     visibility_from_transforms,
@@ -38,7 +39,13 @@ from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 
-TOPICS = {'/object_state', '/capture_request', '/marker_observations', '/target_estimate'}
+TOPICS = {
+    '/object_state',
+    '/capture_request',
+    '/marker_observations',
+    '/target_estimate',
+    '/demand_horizon',
+}
 STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
 
 
@@ -62,8 +69,14 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
     requests: dict[int, Any] = {}
     observations: dict[int, list[Any]] = {}
     estimates: dict[int, tuple[Any, int]] = {}
+    predicted = PredictionLog()
     for m in read_bag(bag, TOPICS):
-        if m.topic == '/object_state':
+        if m.topic == '/demand_horizon':
+            made = _stamp(m.msg)
+            for d in m.msg.demands:
+                p = d.pose.pose.position
+                predicted.add(made, int(d.index), (p.x, p.y, p.z), d.pose.covariance)
+        elif m.topic == '/object_state':
             truth.add(_stamp(m.msg), np.r_[_vec(m.msg.side_marker), _vec(m.msg.side_normal)])
         elif m.topic == '/capture_request':
             requests.setdefault(int(m.msg.demand_index), m.msg)
@@ -82,6 +95,7 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
         rec = demand_record(
             j, tj, s, requests.get(j), observations.get(j, []), estimates.get(j), model
         )
+        rec.predictions = predicted.picks(j, tj)
         records.append(rec)
     return results_document(
         str(info['set']),
@@ -243,9 +257,71 @@ def plot_runs(docs: Sequence[dict[str, Any]], out_dir: Path) -> list[Path]:
     return files
 
 
+def plot_predictions(doc: dict[str, Any], path: Path) -> Path | None:
+    """Predicted vs true demand points (top view) with the predictions' 3-sigma ellipses, as
+    the dispatcher had them 2 s before each instant and at its capture request."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse
+
+    rows = [r for r in doc['demands'] if r.get('predictions')]
+    if not rows:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    colors = {0: 'tab:blue', 1: 'tab:orange'}
+    labelled: set[int] = set()
+    for r in rows:
+        truth = np.asarray(r['true_position'][:2]) * 1e3
+        ax.plot(*truth, 'k.', ms=8)
+        ax.annotate(str(r['index']), truth, textcoords='offset points', xytext=(3, 3), fontsize=7)
+        for i, p in enumerate(r['predictions'][:2]):
+            xy = np.asarray(p['position'][:2]) * 1e3
+            c = np.asarray(p['covariance_xy']) * 1e6
+            w, v = np.linalg.eigh(0.5 * (c + c.T))
+            angle = math.degrees(math.atan2(v[1, 1], v[0, 1]))
+            width, height = (6.0 * math.sqrt(max(x, 0.0)) for x in w[::-1])
+            label = None
+            if i not in labelled:
+                label = (
+                    f'predicted {p["lead"]:.1f} s ahead, 3 sigma'
+                    if i == 0
+                    else ('predicted at the capture request, 3 sigma')
+                )
+                labelled.add(i)
+            ax.add_patch(
+                Ellipse(xy, width, height, angle=angle, fill=False, color=colors[i], lw=1)
+            )
+            ax.plot(*xy, 'x', color=colors[i], label=label)
+            ax.plot([xy[0], truth[0]], [xy[1], truth[1]], color=colors[i], lw=0.5, alpha=0.6)
+    ax.plot([], [], 'k.', label='true demand point')
+    truths = np.array([r['true_position'][:2] for r in rows]) * 1e3
+    lo, hi = truths.min(axis=0) - 50.0, truths.max(axis=0) + 50.0
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect('equal')
+    ax.set_xlabel('x [mm]')
+    ax.set_ylabel('y [mm]')
+    ax.set_title(
+        f'Set {doc["set"]} {doc["system"]}: predicted vs true demand points '
+        f'(predictor {doc.get("predictor", "?")})'
+    )
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc='best')
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     plots = plot_runs(docs, out_dir)
+    for d in docs:
+        p = plot_predictions(d, out_dir / f'predictions_{d["set"]}_{d["system"]}.png')
+        if p is not None:
+            plots.append(p)
     table = summary_table(docs)
     lines = [
         '# activesurv experiment report',

@@ -67,3 +67,46 @@ def suite_path(kind: str, rng: np.random.Generator) -> TimedPath:
     if kind in SUITE_KINDS:
         return random_path(kind, rng)
     raise ConfigError(f'unknown path kind {kind!r}; use one of {SUITE_KINDS}')
+
+
+MANOEUVRES = ('stop', 'reversal', 'speed_change', 'stop_and_go')
+
+
+def manoeuvre_path(kind: str, speed: float = 0.02, acceleration: float = 0.02) -> TimedPath:
+    """The paper's Set A parabola (x 0.13 -> 0.37 m, apex y = 0.09 m) with a manoeuvre, for
+    experiments on the Set A cameras (``experiment --trajectory``):
+
+    * ``stop``: waits 3 s at the apex;
+    * ``reversal``: turns back 6 cm at the apex, then goes on;
+    * ``speed_change``: 8 mm/s for the first 5 cm, then ``speed``;
+    * ``stop_and_go``: waits 1 s at a third and at two thirds of the way.
+
+    Raises:
+        ConfigError: for an unknown kind.
+    """
+    xs = np.linspace(0.13, 0.37, 61)
+    pts = np.column_stack([xs, 0.09 - (0.04 / 0.12**2) * (xs - 0.25) ** 2])
+    n = len(pts) - 1
+    if kind == 'stop':
+        return travel(pts, [speed] * n, {30: 3.0}, acceleration)
+    if kind == 'reversal':
+        i = 30
+        back = [pts[i - k] for k in range(1, 16)]
+        route = np.vstack([pts[: i + 1], back, pts[i - 14 :]])
+        turns = {i: 0.0, i + len(back): 0.0}
+        return travel(route, [speed] * (len(route) - 1), turns, acceleration)
+    if kind == 'speed_change':
+        return travel(pts, [min(0.008, speed)] * 12 + [speed] * (n - 12), {}, acceleration)
+    if kind == 'stop_and_go':
+        return travel(pts, [speed] * n, {20: 1.0, 40: 1.0}, acceleration)
+    raise ConfigError(f'unknown manoeuvre {kind!r}; use one of {MANOEUVRES}')
+
+
+def write_csv(path: TimedPath, out: str, step: float = 0.02) -> None:
+    """Write ``path`` as a ``t,x,y`` CSV sampled every ``step`` s (``experiment --trajectory``)."""
+    ts = np.arange(0.0, path.duration + 1e-9, step)
+    rows = ['t,x,y'] + [
+        f'{t:.3f},{x:.6f},{y:.6f}' for t, (x, y) in zip(ts, map(path.position, ts), strict=True)
+    ]
+    with open(out, 'w') as f:
+        f.write('\n'.join(rows) + '\n')

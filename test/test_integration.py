@@ -121,7 +121,13 @@ def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
     assert after['demands'] == before['demands']
     for name in ('report.md', 'visibility.png', 'position_error.png', 'orientation.png'):
         assert (graph_run / name).exists(), name
+    assert (graph_run / 'predictions_A_fast.png').exists()
     assert 'fast' in r.stdout
+    # The bag's horizons give each demand its prediction 2 s ahead and at the capture request.
+    assert after['predictor'] == 'imm'
+    two = [p for r in after['demands'] for p in r['predictions'] if p['wanted_lead'] == 2.0]
+    assert len(two) >= 8
+    assert all(p['lead'] >= 2.0 for p in two)
 
 
 def test_replay_reproduces_the_estimates(graph_run: Path, tmp_path: Path) -> None:

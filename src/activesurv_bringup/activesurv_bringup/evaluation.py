@@ -170,6 +170,7 @@ class PredictionLog:
                 t, pos, c = made[-1]
                 out.append(
                     {
+                        'wanted_lead': lead,
                         'lead': round(instant - t, 4),
                         'position': [float(v) for v in pos],
                         'covariance_xy': [[float(v) for v in row] for row in c],

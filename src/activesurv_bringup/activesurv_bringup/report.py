@@ -276,7 +276,8 @@ def plot_predictions(doc: dict[str, Any], path: Path) -> Path | None:
         truth = np.asarray(r['true_position'][:2]) * 1e3
         ax.plot(*truth, 'k.', ms=8)
         ax.annotate(str(r['index']), truth, textcoords='offset points', xytext=(3, 3), fontsize=7)
-        for i, p in enumerate(r['predictions'][:2]):
+        for p in r['predictions']:
+            i = 0 if p.get('wanted_lead', 2.0) >= 1.0 else 1
             xy = np.asarray(p['position'][:2]) * 1e3
             c = np.asarray(p['covariance_xy']) * 1e6
             w, v = np.linalg.eigh(0.5 * (c + c.T))

@@ -12,6 +12,7 @@ normal is fixed.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -53,7 +54,8 @@ class DemandSchedule:
 
     def upcoming(self, now: float, m: int) -> list[tuple[int, float]]:
         """(index, instant) of the next ``m`` demands strictly after ``now``."""
-        return [(j, t) for j, t in enumerate(self.times) if t > now][:m]
+        first = bisect.bisect_right(self.times, now)
+        return [(j, self.times[j]) for j in range(first, min(first + m, len(self.times)))]
 
 
 @dataclass(frozen=True)
@@ -250,12 +252,11 @@ def predict_points(
     """Predicted target poses at the given (index, instant) demands."""
     out = []
     predicted = predictor.predict_many([t for _, t in upcoming])
+    template = np.diag([0.0, 0.0, geometry.z_std**2] + [geometry.normal_std**2] * 3)
     for (j, t), (mean, cov) in zip(upcoming, predicted, strict=True):
         pos = np.array([mean[0], mean[1], top_height]) + geometry.offset
-        C = np.zeros((6, 6))
+        C = template.copy()
         C[:2, :2] = cov
-        C[2, 2] = geometry.z_std**2
-        C[3:, 3:] = np.eye(3) * geometry.normal_std**2
         out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C, object_id))
     return out
 

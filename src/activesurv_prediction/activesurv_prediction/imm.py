@@ -101,6 +101,14 @@ class ModeSet:
         lam, vec = np.linalg.eig(r)
         object.__setattr__(self, '_eig', (lam, vec, np.linalg.inv(vec)))
 
+    def grid(self, step: float) -> MomentGrid:
+        """The composed step maps of this mode set for ``step``, shared by every predictor
+        that uses it (they cost a few ms to build and never change)."""
+        grids: dict[float, MomentGrid] = self.__dict__.setdefault('_grids', {})
+        if step not in grids:
+            grids[step] = MomentGrid(self, step)
+        return grids[step]
+
     def transition(self, dt: float) -> Array:
         """``M(dt) = expm(rates dt)`` (3, 3), row-stochastic."""
         out: Array = self.transitions(np.array([dt]))[0]
@@ -120,7 +128,25 @@ class ModeSet:
         return F[0], Q[0]
 
     def models_batch(self, dts: Array) -> tuple[Array, Array]:
-        """F (K, 3, 6, 6) and Q (K, 3, 6, 6) for each of ``dts`` (K,)."""
+        """F (K, 3, 6, 6) and Q (K, 3, 6, 6) for each of ``dts`` (K,).
+
+        Every entry is a polynomial of degree <= 5 in dt; the coefficients are found once
+        from :meth:`models_explicit` (it runs on every prediction, so two matrix products
+        instead of some twenty array assignments).
+        """
+        coef = getattr(self, '_coef', None)
+        if coef is None:
+            nodes = np.arange(6, dtype=np.float64)
+            F, Q = self.models_explicit(nodes)
+            vander = np.vander(nodes, 6, increasing=True)
+            coef = np.linalg.solve(vander, np.concatenate([F, Q], axis=1).reshape(6, -1))
+            object.__setattr__(self, '_coef', coef)
+        powers = np.asarray(dts, dtype=np.float64)[:, None] ** np.arange(6)
+        both = (powers @ coef).reshape(len(dts), 6, 6, 6)
+        return both[:, :3], both[:, 3:]
+
+    def models_explicit(self, dts: Array) -> tuple[Array, Array]:
+        """F and Q as written in the module docstring (the reference of :meth:`models_batch`)."""
         k = len(dts)
         dt = dts
         d2, d3 = dt * dt, dt * dt * dt
@@ -230,47 +256,110 @@ def update(s: ModeStates, z: Array, r: float) -> tuple[ModeStates, float]:
     return ModeStates(x, 0.5 * (P + P.transpose(0, 2, 1)), mu), d2_mix
 
 
+def _step_operators(modes: ModeSet, dts: Array) -> tuple[Array, Array, Array, Array]:
+    """Per step length: transposed transition (K, 3, 3), augmented G (K, 3, 7, 7), its
+    transpose, and Q (K, 3, 6, 6)."""
+    F, Q = modes.models_batch(dts)
+    G = np.zeros((len(dts), 3, 7, 7))
+    G[..., :6, :6] = F
+    G[..., 6, 6] = 1.0
+    return modes.transitions(dts).transpose(0, 2, 1), G, G.transpose(0, 1, 3, 2), Q
+
+
+def _advance(A: Array, Mt: Array, G: Array, Gt: Array, Q: Array) -> Array:
+    """One step of the moment recursion (any leading batch shape)."""
+    shape = A.shape
+    B = (Mt @ A.reshape(*shape[:-2], 49)).reshape(shape)
+    out: Array = G @ B @ Gt
+    out[..., :6, :6] += B[..., 6:, 6:] * Q
+    return out
+
+
+def step_grid(lead: float, step: float) -> float:
+    """The moment recursion's step at ``lead`` seconds ahead: ``step`` for the first 2 s, then
+    twice that to 4 s, then four times (switching matters most soon)."""
+    return step if lead < 2.0 - 1e-9 else (2.0 * step if lead < 4.0 - 1e-9 else 4.0 * step)
+
+
+def _step_map(modes: ModeSet, dt: float) -> Array:
+    """The moment recursion over one step of ``dt`` as one linear map on the stacked
+    row-major ``A_j`` (147,): ``vec(G B G^T) = (G kron G) vec(B)``, plus ``Q`` times
+    ``B[6, 6]``, after mixing ``B_j = sum_i M_ij A_i``."""
+    Mt, G, _, Q = _step_operators(modes, np.array([dt]))
+    L = np.zeros((147, 147))
+    for j in range(3):
+        K = np.kron(G[0, j], G[0, j])
+        K[:, 48] += np.pad(Q[0, j], ((0, 1), (0, 1))).reshape(49)
+        for i in range(3):
+            L[49 * j : 49 * j + 49, 49 * i : 49 * i + 49] = Mt[0, j, i] * K
+    return L
+
+
+class MomentGrid:
+    """Composed step maps from now to the points of the step grid (:func:`step_grid`), built
+    once per mode set and step and grown as far ahead as predictions go (up to ``horizon``
+    seconds; further predictions step on one by one)."""
+
+    def __init__(self, modes: ModeSet, step: float, horizon: float = 60.0) -> None:
+        self.modes = modes
+        self.step = step
+        self.horizon = horizon
+        self.times = [0.0]
+        self.maps = [np.eye(147)]
+        self.stack = np.eye(147)  # the maps one above the other (N * 147, 147)
+
+    def index(self, lead: float) -> int:
+        """The last grid point at or before ``lead``, growing the grid as needed."""
+        while self.times[-1] <= min(lead, self.horizon) + 1e-9:
+            dt = step_grid(self.times[-1], self.step)
+            if self.times[-1] + dt > lead + 1e-9:
+                break
+            self.maps.append(_step_map(self.modes, dt) @ self.maps[-1])
+            self.times.append(self.times[-1] + dt)
+            self.stack = np.concatenate(self.maps)
+        return int(np.searchsorted(self.times, lead + 1e-9, side='right')) - 1
+
+
 def propagate_moments(
-    s: ModeStates, modes: ModeSet, leads: Array, substeps: int, origin: Array
+    s: ModeStates, modes: ModeSet, leads: Array, origin: Array, grid: MomentGrid
 ) -> Array:
     """Switching-aware moments of the position ``leads`` seconds ahead.
 
-    Each lead is cut into ``substeps`` equal steps; the mode may switch at every step boundary
-    (switching in continuous time is approached as the steps shrink).
+    Time ahead is cut into the steps of ``grid``; the mode may switch at every step boundary
+    (continuous-time switching is approached as the steps shrink). Each lead ends with a step
+    of its own from the last grid point before it.
 
     Args:
         s: the mode states now.
         modes: the mode set.
         leads: (K,) times ahead, s (>= 0).
-        substeps: steps per lead.
         origin: (2,) position subtracted from the positions, for precision.
+        grid: the composed step maps (kept by the caller between calls).
 
     Returns:
         (K, 3, 3): ``[[E[zz^T], E[z]], [E[z]^T, 1]]`` of the position ``z`` relative to
         ``origin``, over every mode sequence.
     """
-    k = len(leads)
     x = s.x.copy()
     x[:, ::3] -= origin
-    A0 = np.zeros((3, 7, 7))
-    A0[:, :6, :6] = s.P + x[:, :, None] * x[:, None, :]
-    A0[:, :6, 6] = A0[:, 6, :6] = x
-    A0[:, 6, 6] = 1.0
-    A = np.broadcast_to(A0 * s.mu[:, None, None], (k, 3, 7, 7)).copy()
-    dt = leads / substeps
-    F, Q = modes.models_batch(dt)
-    G = np.zeros((k, 3, 7, 7))
-    G[..., :6, :6] = F
-    G[..., 6, 6] = 1.0
-    Gt = G.transpose(0, 1, 3, 2)
-    Mt = modes.transitions(dt).transpose(0, 2, 1)
-    B = np.empty_like(A)
-    GB = np.empty_like(A)
-    for _ in range(substeps):
-        np.matmul(Mt, A.reshape(k, 3, 49), out=B.reshape(k, 3, 49))
-        np.matmul(G, B, out=GB)
-        np.matmul(GB, Gt, out=A)
-        A[..., :6, :6] += B[..., 6:, 6:] * Q
-    idx = np.array([0, 3, 6])
-    out: Array = A.sum(axis=1)[:, idx][:, :, idx]
+    A = np.zeros((3, 7, 7))
+    A[:, :6, :6] = s.P + x[:, :, None] * x[:, None, :]
+    A[:, :6, 6] = A[:, 6, :6] = x
+    A[:, 6, 6] = 1.0
+    A *= s.mu[:, None, None]
+    idx = [grid.index(float(lead)) for lead in leads]
+    last = max(idx) + 1
+    states = (grid.stack[: 147 * last] @ A.reshape(147)).reshape(last, 3, 7, 7)
+    before = states[idx]
+    rest = leads - np.array([grid.times[i] for i in idx])
+    while np.any(rest > 1e-9):  # the last step of each lead (several beyond the grid)
+        go = rest > 1e-9
+        at = leads[go] - rest[go]
+        dt = np.array(
+            [min(r, step_grid(float(a), grid.step)) for r, a in zip(rest[go], at, strict=True)]
+        )
+        before[go] = _advance(before[go], *_step_operators(modes, dt))
+        rest[go] -= dt
+    sel = np.array([0, 3, 6])
+    out: Array = before.sum(axis=1)[:, sel][:, :, sel]
     return out

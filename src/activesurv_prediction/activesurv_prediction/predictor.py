@@ -60,7 +60,8 @@ class TargetPredictor:
         initial_probabilities: mode probabilities (S, CV, CA) at track start.
         gate: chi-square (2 dof) threshold on the innovation; 0 disables gating.
         max_rejections: consecutive rejections after which the filter restarts.
-        substeps: steps a prediction is cut into; the mode may switch between them.
+        step: finest step (s) of a prediction; the mode may switch between steps
+            (:func:`activesurv_prediction.imm.step_grid`).
     """
 
     def __init__(
@@ -71,7 +72,7 @@ class TargetPredictor:
         initial_probabilities: Sequence[float] = (0.2, 0.5, 0.3),
         gate: float = 50.0,
         max_rejections: int = 8,
-        substeps: int = 6,
+        step: float = 0.5,
         reference_jerk_std: float = 7e-5,
     ) -> None:
         check_positive(
@@ -92,9 +93,9 @@ class TargetPredictor:
         self.mu0 = mu0
         self.gate = float(gate)
         self.max_rejections = int(max_rejections)
-        if substeps < 1:
-            raise PredictionError(f'substeps must be >= 1, got {substeps}')
-        self.substeps = int(substeps)
+        if not (math.isfinite(step) and 0.0 < step <= 2.0):
+            raise PredictionError(f'step must be in (0, 2] s, got {step}')
+        self.step = float(step)
         self.reference_jerk_std = float(reference_jerk_std)
         self.reference = AxisFilter(self.measurement_std, self.reference_jerk_std)
         self._reference_misses = 0
@@ -105,6 +106,7 @@ class TargetPredictor:
         self.consecutive_rejections = 0
         self._rejected: list[tuple[float, Array]] = []
         self._steps: dict[float, tuple[Array, Array, Array]] = {}
+        self._grid = self.modes.grid(self.step)
 
     # -- state -------------------------------------------------------------------------------
     @property
@@ -278,7 +280,7 @@ class TargetPredictor:
         leads = np.array(ts) - t0
         origin = s.mu @ s.x[:, ::3]
         means = self._means(s, leads) - origin
-        moments = imm.propagate_moments(s, self.modes, leads, self.substeps, origin)
+        moments = imm.propagate_moments(s, self.modes, leads, origin, self._grid)
         ezz, ez = moments[:, :2, :2], moments[:, :2, 2]
         mm = means[:, :, None] * means[:, None, :]
         cov = ezz - ez[:, :, None] * means[:, None, :] - means[:, :, None] * ez[:, None, :] + mm

@@ -67,7 +67,8 @@ def test_switching_moments_match_a_monte_carlo_of_the_jump_system() -> None:
     P = np.repeat(np.diag([R, 4e-6, 1e-6, R, 4e-6, 1e-6])[None], 3, 0)
     s = imm.ModeStates(x, P, np.array([0.1, 0.6, 0.3]))
     lead, steps, n = 2.0, 4, 40000
-    moments = imm.propagate_moments(s, modes, np.array([lead]), steps, np.zeros(2))[0]
+    grid = imm.MomentGrid(modes, lead / steps)
+    moments = imm.propagate_moments(s, modes, np.array([lead]), np.zeros(2), grid)[0]
     mean, second = moments[:2, 2], moments[:2, :2]
     cov = second - np.outer(mean, mean)
     # Simulate: mode chain with M(dt) at each step boundary, then that mode's linear model.

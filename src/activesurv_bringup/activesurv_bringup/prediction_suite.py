@@ -75,16 +75,16 @@ def evaluate_kind(
                 per_lead[lead]['run_nees'].append(float(np.mean(run_d2[lead])))
     out: dict[str, Any] = {'runs': runs, 'update_us_median': 1e6 * float(np.median(update_s))}
     for lead, v in per_lead.items():
-        err, d2 = np.array(v['err']), np.array(v['d2'])
+        err, d2s = np.array(v['err']), np.array(v['d2'])
         band = nees_band(len(v['run_nees']))
         nees = float(np.mean(v['run_nees']))
         out[f'{lead:g}s'] = {
             'predictions': len(err),
             'rms_error_mm': round(1e3 * math.sqrt(float(np.mean(err**2))), 3),
             'p95_error_mm': round(1e3 * float(np.percentile(err, 95)), 3),
-            'inside_1sigma': round(float(np.mean(d2 <= 1.0)), 4),
-            'inside_2sigma': round(float(np.mean(d2 <= 4.0)), 4),
-            'inside_3sigma': round(float(np.mean(d2 <= 9.0)), 4),
+            'inside_1sigma': round(float(np.mean(d2s <= 1.0)), 4),
+            'inside_2sigma': round(float(np.mean(d2s <= 4.0)), 4),
+            'inside_3sigma': round(float(np.mean(d2s <= 9.0)), 4),
             'mean_nees': round(nees, 3),
             'nees_band_95': [round(band[0], 3), round(band[1], 3)],
             'nees_in_band': bool(band[0] <= nees <= band[1]),

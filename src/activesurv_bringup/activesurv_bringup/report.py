@@ -275,7 +275,13 @@ def plot_predictions(doc: dict[str, Any], path: Path) -> Path | None:
     for r in rows:
         truth = np.asarray(r['true_position'][:2]) * 1e3
         ax.plot(*truth, 'k.', ms=8)
-        ax.annotate(str(r['index']), truth, textcoords='offset points', xytext=(3, 3), fontsize=7)
+        ax.annotate(
+            str(r['index']),
+            (float(truth[0]), float(truth[1])),
+            textcoords='offset points',
+            xytext=(3, 3),
+            fontsize=7,
+        )
         for p in r['predictions']:
             i = 0 if p.get('wanted_lead', 2.0) >= 1.0 else 1
             xy = np.asarray(p['position'][:2]) * 1e3
@@ -286,13 +292,21 @@ def plot_predictions(doc: dict[str, Any], path: Path) -> Path | None:
             label = None
             if i not in labelled:
                 label = (
-                    f'predicted {p["lead"]:.1f} s ahead, 3 sigma'
+                    'predicted >= 2 s ahead, 3 sigma'
                     if i == 0
-                    else ('predicted at the capture request, 3 sigma')
+                    else 'predicted at the capture request, 3 sigma'
                 )
                 labelled.add(i)
             ax.add_patch(
-                Ellipse(xy, width, height, angle=angle, fill=False, color=colors[i], lw=1)
+                Ellipse(
+                    (float(xy[0]), float(xy[1])),
+                    width,
+                    height,
+                    angle=angle,
+                    fill=False,
+                    color=colors[i],
+                    lw=1,
+                )
             )
             ax.plot(*xy, 'x', color=colors[i], label=label)
             ax.plot([xy[0], truth[0]], [xy[1], truth[1]], color=colors[i], lw=0.5, alpha=0.6)

@@ -13,7 +13,9 @@ PKGS := activesurv_common activesurv_sim activesurv_imaging activesurv_predictio
         activesurv_dispatch activesurv_fusion activesurv_stages activesurv_bringup
 IFACE_SRC := $(wildcard src/activesurv_interfaces/msg/*.msg) \
              src/activesurv_interfaces/CMakeLists.txt src/activesurv_interfaces/package.xml \
-             src/activesurv_interfaces/pyproject.toml scripts/build_interfaces.sh
+             src/activesurv_interfaces/pyproject.toml scripts/build_interfaces.sh \
+             $(wildcard src/vendor/tf2_msgs/msg/*.msg src/vendor/tf2_msgs/srv/*.srv) \
+             src/vendor/tf2_msgs/CMakeLists.txt src/vendor/tf2_msgs/package.xml
 PKG_META := $(foreach p,$(PKGS),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/package.xml src/$(p)/pyproject.toml) \
             $(wildcard src/*/config/*.yaml)
 CORE_DIRS := $(foreach p,$(PKGS),src/$(p)/$(p))

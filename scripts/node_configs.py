@@ -33,6 +33,7 @@ NODES: dict[str, tuple[str, str]] = {
     'stage_bridge': ('activesurv_stages', 'stage_bridge_node'),
     'recorder': ('activesurv_bringup', 'recorder_node'),
     'image_load': ('activesurv_bringup', 'load_node'),
+    'frames': ('activesurv_bringup', 'frames_node'),
 }
 
 

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
@@ -90,6 +91,43 @@ def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:
         assert est.msgtype == 'activesurv_interfaces/msg/TargetEstimate'
         assert 'cameras_faulty' in est.msgdef.data  # the definition travels with the bag
         assert reader.message_count > 1000
+
+
+def test_bag_holds_the_frame_tree_for_foxglove(graph_run: Path) -> None:
+    """/tf and /tf_static decode with Foxglove's own readers and chain world to every optical
+    frame; /tf_static is recorded reliable + transient local."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from activesurv_common import frames
+    from activesurv_common.geometry import Transform, matrix_from_quaternion
+
+    edges: dict[str, frames.Edge] = {}
+    files = sorted((graph_run / 'bag').glob('*.mcap'))
+    for name in files:
+        with open(name, 'rb') as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, _ch, _, msg in reader.iter_decoded_messages(topics=['/tf', '/tf_static']):
+                for t in msg.transforms:
+                    r, p = t.transform.rotation, t.transform.translation
+                    T = Transform.from_rt(
+                        matrix_from_quaternion([r.x, r.y, r.z, r.w]), [p.x, p.y, p.z]
+                    )
+                    edges[t.child_frame_id] = frames.Edge(t.header.frame_id, t.child_frame_id, T)
+    for frame in ('cam1_optical_frame', 'cam4_optical_frame', 'overhead_optical_frame', 'object'):
+        T = frames.chain(edges.values(), frame)
+        assert np.all(np.isfinite(T.t)), frame
+    assert edges['cam1_base'].parent == 'world'
+    import yaml
+
+    meta = yaml.safe_load((graph_run / 'bag' / 'metadata.yaml').read_text())
+    qos = {
+        t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+        for t in meta['rosbag2_bagfile_information']['topics_with_message_count']
+    }
+    assert [q['durability'] for q in qos['/tf_static']] == ['transient_local']
+    assert [q['reliability'] for q in qos['/tf_static']] == ['reliable']
+    assert qos['/tf'][0]['reliability'] == 'reliable'
 
 
 def test_bag_records_the_qos_its_publishers_offer(graph_run: Path) -> None:

@@ -28,6 +28,7 @@ setup(
             'activesurv = activesurv_bringup.cli:main',
             'recorder = activesurv_bringup.recorder_node:main',
             'image_load = activesurv_bringup.load_node:main',
+            'frames = activesurv_bringup.frames_node:main',
             'activesurv_sensor_model = activesurv_bringup.sensor_model_experiment:main',
         ],
     },

@@ -141,6 +141,11 @@ def graph_specs(
             },
         ),
         NodeSpec(
+            'frames',
+            'activesurv_bringup.frames_node',
+            parameters={**sim, 'motion_class': exp.system, 'overhead_pose': over},
+        ),
+        NodeSpec(
             'fusion',
             'activesurv_fusion.fusion_node',
             parameters={

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Pose
+from geometry_msgs.msg import Pose, TransformStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
@@ -127,6 +127,19 @@ def joint_vector(msg: JointState, names: Sequence[str]) -> np.ndarray | None:
         return np.array([float(table[n]) for n in names], dtype=np.float64)
     except KeyError:
         return None
+
+
+def transform_stamped(parent: str, child: str, T: Transform, stamp: Time) -> TransformStamped:
+    """A tf edge ``parent -> child`` (``T`` maps child coordinates into the parent)."""
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    tr = msg.transform.translation
+    tr.x, tr.y, tr.z = (float(v) for v in T.t)
+    q = msg.transform.rotation
+    q.x, q.y, q.z, q.w = (float(v) for v in T.quaternion())
+    return msg
 
 
 def pose_from_transform(T: Transform) -> Pose:

@@ -47,6 +47,9 @@ RESULTS = _profile(20, latched=True)
 CLOCK = _profile(1)
 CLOCK_SUBSCRIBER = _profile(1, reliable=False)
 DIAGNOSTICS = _profile(10)
+# The frame tree, as tf2_ros publishes it: /tf reliable depth 100, /tf_static latched depth 1.
+TF = _profile(100)
+TF_STATIC = _profile(1, latched=True)
 # Small status topics of the tools (recorder status).
 STATUS = _profile(10)
 
@@ -66,6 +69,8 @@ PUBLISHED: dict[str, QoSProfile] = {
     '/target_estimate': RESULTS,
     '/target_pose': RESULTS,
     '/diagnostics': DIAGNOSTICS,
+    '/tf': TF,
+    '/tf_static': TF_STATIC,
     '/*/image_raw': SENSOR_RELIABLE,
     '/*/camera_info': SENSOR_RELIABLE,
     '/*/stage/joint_states': STATE,

@@ -26,6 +26,8 @@ TARGET_ESTIMATE = 'target_estimate'
 TARGET_POSE = 'target_pose'
 # Infrastructure
 DIAGNOSTICS = '/diagnostics'
+TF = '/tf'
+TF_STATIC = '/tf_static'
 RECORDER_STATUS = '/activesurv/recorder_status'
 RUN_INFO = '/activesurv/run_info'
 

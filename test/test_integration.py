@@ -87,6 +87,9 @@ def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:
             '/cam1/stage/joint_states',
         ):
             assert topic in conns, topic
+        annotated = [t for t in conns if t.endswith('/marker_annotations')]
+        assert annotated, 'no imager drew over its images'
+        assert conns[annotated[0]].msgtype == 'visualization_msgs/msg/ImageMarker'
         est = conns['/target_estimate']
         assert est.msgtype == 'activesurv_interfaces/msg/TargetEstimate'
         assert 'cameras_faulty' in est.msgdef.data  # the definition travels with the bag

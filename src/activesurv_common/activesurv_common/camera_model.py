@@ -1,7 +1,8 @@
 """Pinhole camera with OpenCV distortion (plumb-bob k1, k2, p1, p2, k3).
 
 Pixel coordinates follow OpenCV: x right, y down, integer values at pixel centres. The camera
-frame is ``<camera>_optical``: z forward, x right, y down. Defaults come from the paper's Table I:
+frame is ``<camera>_optical_frame`` (REP 103): z forward, x right, y down. Defaults come from the
+paper's Table I:
 
 * dynamic cameras: 640x480, 1/4-inch CMOS (3.2 x 2.4 mm, 5 um pixels), 25 mm lens:
   fx = fy = 25 mm / 5 um = 5000 px, so the 25 mm marker is 250 px across at 0.5 m and 208 px at

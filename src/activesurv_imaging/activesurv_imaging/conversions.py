@@ -9,8 +9,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Point
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import ImageMarker
 
 from activesurv_common.ros.conversions import pose_from_transform, sec_to_time
+from activesurv_imaging.annotations import Shape
 from activesurv_imaging.observation import Observation
 from activesurv_interfaces.msg import MarkerObservation
 
@@ -44,3 +49,43 @@ def observation_to_msg(obs: Observation, frame_id: str = 'world') -> MarkerObser
     if obs.camera_pose is not None:
         msg.camera_pose = pose_from_transform(obs.camera_pose)
     return msg
+
+
+# -- annotations ---------------------------------------------------------------------------
+GREEN = ColorRGBA(r=0.1, g=0.9, b=0.2, a=1.0)
+YELLOW = ColorRGBA(r=1.0, g=0.85, b=0.1, a=1.0)
+RED = ColorRGBA(r=1.0, g=0.15, b=0.1, a=1.0)
+_TYPES = {
+    'ellipse': ImageMarker.LINE_STRIP,
+    'centre': ImageMarker.CIRCLE,
+    'normal': ImageMarker.LINE_LIST,
+    'status': ImageMarker.CIRCLE,
+}
+_COLOURS = {'ellipse': GREEN, 'centre': GREEN, 'normal': YELLOW, 'status': RED}
+
+
+def annotation_markers(
+    shapes: list[Shape], stamp: float, frame_id: str, demand_index: int
+) -> list[ImageMarker]:
+    """One ImageMarker per shape, stamped like the image. ``ns`` names the demand and, for a
+    failure, carries its status and reason (ImageMarker has no text field); markers live 5 s.
+    """
+    out = []
+    for i, shape in enumerate(shapes):
+        m = ImageMarker()
+        m.header.stamp = sec_to_time(stamp)
+        m.header.frame_id = frame_id
+        m.ns = f'demand {demand_index}' + (f': {shape.label}' if shape.label else '')
+        m.id = i
+        m.type = _TYPES[shape.kind]
+        m.action = ImageMarker.ADD
+        m.outline_color = _COLOURS[shape.kind]
+        m.scale = float(shape.size) if shape.size else 2.0
+        m.lifetime = Duration(sec=5)
+        if shape.kind in ('centre', 'status'):
+            m.position = Point(x=shape.points[0][0], y=shape.points[0][1], z=0.0)
+            m.filled = 0
+        else:
+            m.points = [Point(x=x, y=y, z=0.0) for x, y in shape.points]
+        out.append(m)
+    return out

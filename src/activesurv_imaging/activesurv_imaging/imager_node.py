@@ -9,8 +9,10 @@ decisions are :class:`activesurv_imaging.capture.CaptureCore`'s; this node only 
 
 Subscribes: capture_request, <camera_id>/image_raw, <camera_id>/camera_info,
     <camera_id>/stage/joint_states (unless the mount is static).
-Publishes: marker_observations, <camera_id>/imager/heartbeat (std_msgs/Header at 10 Hz of the
-    node clock: the dispatcher stops assigning this camera when the beat stops), /diagnostics.
+Publishes: marker_observations, <camera_id>/marker_annotations (ImageMarker: the fitted
+    ellipse, its centre and the chosen normal, or the failure), <camera_id>/imager/heartbeat
+    (std_msgs/Header at 10 Hz of the node clock: the dispatcher stops assigning this camera
+    when the beat stops), /diagnostics.
 Parameters: see ``config/imager.yaml``.
 """
 
@@ -22,6 +24,7 @@ from typing import Any
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
+from visualization_msgs.msg import ImageMarker
 
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
@@ -37,8 +40,9 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
+from activesurv_imaging.annotations import annotation_shapes
 from activesurv_imaging.capture import CaptureCore, ImagerConfig
-from activesurv_imaging.conversions import observation_to_msg
+from activesurv_imaging.conversions import annotation_markers, observation_to_msg
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
@@ -89,6 +93,9 @@ class ImagerNode(Node):
         )
         self._beat_pub = self.create_publisher(
             Header, topics.heartbeat(self.camera_id), qos.SENSOR
+        )
+        self._ann_pub = self.create_publisher(
+            ImageMarker, topics.marker_annotations(self.camera_id), qos.EVENTS
         )
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
@@ -154,6 +161,12 @@ class ImagerNode(Node):
         for obs in self.core.poll(self._now()):
             self.counts[obs.status.name] += 1
             self._obs_pub.publish(observation_to_msg(obs))
+            cam = self.core.camera
+            size = (cam.width, cam.height) if cam is not None else (640, 480)
+            shapes = annotation_shapes(obs, cam.project if cam else None, image_size=size)
+            frame = f'{self.camera_id}_optical_frame'
+            for m in annotation_markers(shapes, obs.stamp, frame, obs.demand_index):
+                self._ann_pub.publish(m)
             if obs.status is not ObservationStatus.OK:
                 self.get_logger().warning(
                     f'demand {obs.demand_index}: {obs.status.name}: {obs.reason}'

@@ -79,7 +79,7 @@ class SimCameraNode(Node):
             mount_from_parameters(self.camera_id, p),
         )
         self.sim.warm_up()
-        self.frame_id = f'{self.camera_id}_optical'
+        self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
         self._image_pub = self.create_publisher(
             Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
         )

@@ -76,6 +76,7 @@ PUBLISHED: dict[str, QoSProfile] = {
     '/*/stage/joint_states': STATE,
     '/*/stage/goal': GOAL,
     '/*/imager/heartbeat': SENSOR,
+    '/*/marker_annotations': EVENTS,
     '/sim/planned_object_state': EVENTS,
     '/sim/*/planned_joint_states': EVENTS,
 }

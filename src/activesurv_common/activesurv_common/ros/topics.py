@@ -43,6 +43,11 @@ def camera_info(camera_id: str) -> str:
     return f'{camera_id}/camera_info'
 
 
+def marker_annotations(camera_id: str) -> str:
+    """The imager's drawing over its image (visualization_msgs/ImageMarker)."""
+    return f'{camera_id}/marker_annotations'
+
+
 def heartbeat(camera_id: str) -> str:
     """The imager's liveness beat (std_msgs/Header, frame_id = camera id, 10 Hz)."""
     return f'{camera_id}/imager/heartbeat'

@@ -34,6 +34,7 @@ NODES: dict[str, tuple[str, str]] = {
     'recorder': ('activesurv_bringup', 'recorder_node'),
     'image_load': ('activesurv_bringup', 'load_node'),
     'frames': ('activesurv_bringup', 'frames_node'),
+    'live_view': ('activesurv_bringup', 'live_view_node'),
 }
 
 

@@ -29,6 +29,7 @@ setup(
             'recorder = activesurv_bringup.recorder_node:main',
             'image_load = activesurv_bringup.load_node:main',
             'frames = activesurv_bringup.frames_node:main',
+            'live_view = activesurv_bringup.live_view_node:main',
             'activesurv_sensor_model = activesurv_bringup.sensor_model_experiment:main',
         ],
     },

@@ -94,6 +94,15 @@ def _build_parser() -> argparse.ArgumentParser:
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
     )
     exp.add_argument(
+        '--foxglove',
+        type=int,
+        nargs='?',
+        const=8765,
+        default=None,
+        metavar='PORT',
+        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
+    )
+    exp.add_argument(
         '--compose',
         action='store_true',
         help='graph mode with every node in this process (one executor)',
@@ -129,11 +138,29 @@ def _build_parser() -> argparse.ArgumentParser:
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag'
     )
     sv.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
+    sv.add_argument(
+        '--foxglove',
+        type=int,
+        nargs='?',
+        const=8765,
+        default=None,
+        metavar='PORT',
+        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
+    )
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     rpl.add_argument('--rtf', type=float, default=1.0, help='bag s per wall s')
+    rpl.add_argument(
+        '--foxglove',
+        type=int,
+        nargs='?',
+        const=8765,
+        default=None,
+        metavar='PORT',
+        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
+    )
 
     rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
@@ -173,9 +200,12 @@ def run_options(args: argparse.Namespace) -> RunOptions:
     """
     from activesurv_bringup.experiment import dds_profile_path
     from activesurv_bringup.faults import parse_fault, parse_kill
+    from activesurv_bringup.graph import live_view_spec
 
     profile = getattr(args, 'dds_profile', None)
+    port = getattr(args, 'foxglove', None)
     return RunOptions(
+        extra=() if port is None else (live_view_spec(port),),
         rtf=float(args.rtf),
         image_rate=float(getattr(args, 'image_rate', 2.0)),
         faults=tuple(parse_fault(f) for f in getattr(args, 'fault', [])),
@@ -297,14 +327,16 @@ def surveil(out: Path, session: Any, options: RunOptions | None = None) -> dict[
     return doc
 
 
-def replay(bag: Path, out: Path, rtf: float = 1.0) -> list[dict[str, Any]]:
+def replay(
+    bag: Path, out: Path, rtf: float = 1.0, foxglove: int | None = None
+) -> list[dict[str, Any]]:
     """Re-run imaging and fusion on a recorded run (its bag or its directory) into ``out``."""
     from activesurv_bringup.replay import compare, run_replay
 
     if not (bag / 'metadata.yaml').exists() and (bag / 'bag').is_dir():
         bag = bag / 'bag'  # a run directory
     new_output_dir(out)
-    new = run_replay(bag, out, rtf)
+    new = run_replay(bag, out, rtf, foxglove=foxglove)
     rows = compare(bag, new)
     (out / 'replay.json').write_text(json.dumps(rows, indent=2))
     print(f'{"demand":>6} {"recorded":>9} {"replayed":>9} {"difference [mm]":>16}')
@@ -395,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             surveil(args.out, session, run_options(args))
         elif args.command == 'replay':
-            replay(args.bag, args.out, args.rtf)
+            replay(args.bag, args.out, args.rtf, args.foxglove)
         elif args.command == 'bag':
             from activesurv_bringup.salvage import reindex
 

@@ -18,6 +18,7 @@ from activesurv_bringup.launcher import NodeSpec
 NODE_CLASSES = {
     'activesurv_bringup.recorder_node': 'RecorderNode',
     'activesurv_bringup.frames_node': 'FramesNode',
+    'activesurv_bringup.live_view_node': 'LiveViewNode',
     'activesurv_sim.sim_camera_node': 'SimCameraNode',
     'activesurv_imaging.imager_node': 'ImagerNode',
     'activesurv_prediction.predictor_node': 'PredictorNode',

@@ -45,6 +45,15 @@ def mount_parameters(sensor: Sensor) -> dict[str, Any]:
     }
 
 
+def live_view_spec(port: int, sim_time: bool = True) -> NodeSpec:
+    """The Foxglove live view on ``port`` (``--foxglove``)."""
+    return NodeSpec(
+        'live_view',
+        'activesurv_bringup.live_view_node',
+        parameters={'port': int(port), 'use_sim_time': sim_time},
+    )
+
+
 def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
     info = exp.summary()
     info.update(

@@ -87,7 +87,13 @@ def _inputs(info: dict[str, Any]) -> set[str]:
     return topics
 
 
-def run_replay(bag: Path, out_dir: Path, rtf: float = 1.0, progress: Progress = print) -> Path:
+def run_replay(
+    bag: Path,
+    out_dir: Path,
+    rtf: float = 1.0,
+    progress: Progress = print,
+    foxglove: int | None = None,
+) -> Path:
     """Replay ``bag``; returns the new bag with the replayed estimates.
 
     Raises:
@@ -104,6 +110,10 @@ def run_replay(bag: Path, out_dir: Path, rtf: float = 1.0, progress: Progress = 
     out_dir.mkdir(parents=True, exist_ok=True)
     new_bag = out_dir / 'bag'
     specs = replay_specs(info, new_bag)
+    if foxglove is not None:
+        from activesurv_bringup.graph import live_view_spec
+
+        specs.insert(-1, live_view_spec(foxglove))
     owns = not rclpy.ok()
     if owns:
         rclpy.init()

@@ -1,0 +1,62 @@
+"""Which topics the live view serves, and how often (pure core).
+
+The live view forwards the graph's messages unchanged (CDR, with their ROS 2 message
+definitions as schemas, as foxglove_bridge does), so Foxglove decodes them with its own ROS 2
+readers. Images are thinned to ``image_rate`` per camera (a browser needs 10 Hz, not 30);
+everything else passes.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from collections.abc import Sequence
+
+DEFAULT_TOPICS = (
+    '/tf',
+    '/tf_static',
+    '/*/image_raw',
+    '/*/camera_info',
+    '/*/marker_annotations',
+    '/*/stage/joint_states',
+    '/dispatch_markers',
+    '/dispatch_plan',
+    '/demand_horizon',
+    '/capture_request',
+    '/marker_observations',
+    '/target_estimate',
+    '/target_pose',
+    '/object_state',
+    '/overhead/track',
+    '/diagnostics',
+)
+
+
+class LiveFilter:
+    """Topic selection (shell patterns) and image thinning.
+
+    Args:
+        patterns: topics to serve (``*`` matches a camera id).
+        image_rate: most images per second per image topic (0: all).
+    """
+
+    def __init__(self, patterns: Sequence[str] = DEFAULT_TOPICS, image_rate: float = 10.0) -> None:
+        if not image_rate >= 0.0:
+            raise ValueError(f'image_rate must be >= 0, got {image_rate}')
+        self.patterns = tuple(patterns)
+        self.period = 1.0 / image_rate if image_rate > 0.0 else 0.0
+        self._last: dict[str, float] = {}
+        self.passed = 0
+        self.thinned = 0
+
+    def wanted(self, topic: str) -> bool:
+        return any(fnmatch.fnmatchcase(topic, p) for p in self.patterns)
+
+    def keep(self, topic: str, now: float) -> bool:
+        """Whether a message of ``topic`` arriving at ``now`` (s, steady) goes out."""
+        if self.period and topic.endswith('image_raw'):
+            if now - self._last.get(topic, -1e18) < self.period - 1e-6:
+                self.thinned += 1
+                return False
+            self._last[topic] = now
+        self.passed += 1
+        return True

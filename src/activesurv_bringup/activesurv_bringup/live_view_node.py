@@ -1,0 +1,99 @@
+"""The ``live_view`` node: the graph's topics over the Foxglove WebSocket protocol.
+
+A Foxglove (or Lichtblick) client on ``ws://HOST:PORT`` sees the run as it happens: camera
+images (thinned to ``image_rate``), their marker annotations, the frame tree, dispatch markers,
+demand points, estimates, stage states, diagnostics
+(:data:`activesurv_bringup.live.DEFAULT_TOPICS`).
+Messages are forwarded as they are (CDR) with their ROS 2 definitions as schemas; topics are
+picked up as their publishers appear, with the QoS those offer (latched topics arrive too).
+The server is foxglove-sdk's (subprotocol ``foxglove.sdk.v1``).
+
+Parameters: see ``config/live_view.yaml``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+
+from activesurv_bringup.bagio import message_class, recording_qos, typestore
+from activesurv_bringup.live import DEFAULT_TOPICS, LiveFilter
+from activesurv_common.ros import qos
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+
+PARAMS = (
+    Param('port', 8765, 'WebSocket port', minimum=1),
+    Param('host', '127.0.0.1', 'address to listen on (0.0.0.0: every interface)'),
+    Param('image_rate', 10.0, 'images per second per camera (0: all)', minimum=0.0),
+    Param('topics', list(DEFAULT_TOPICS), 'topics to serve (shell patterns)'),
+    Param('discovery_period', 1.0, 's between looks for new topics', above=0.0),
+)
+
+
+class LiveViewNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        import foxglove
+
+        super().__init__('live_view', **kwargs)
+        declare(self, PARAMS)
+        v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
+        self.filter = LiveFilter(list(v['topics']), float(v['image_rate']))
+        self.ts = typestore()
+        self.channels: dict[str, Any] = {}
+        self.server = foxglove.start_server(
+            name='activesurv', host=str(v['host']), port=int(v['port'])
+        )
+        self.get_logger().info(f'Foxglove live view on ws://{v["host"]}:{self.server.port}')
+        self.create_timer(
+            float(v['discovery_period']),
+            self._discover,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
+        self._discover()
+
+    def _discover(self) -> None:
+        import foxglove
+
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.channels or not types or not self.filter.wanted(topic):
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+                definition = self.ts.generate_msgdef(type_name, ros_version=2)[0]
+            except (ImportError, AttributeError, ValueError, KeyError) as exc:
+                self.get_logger().warning(f'cannot serve {topic} [{type_name}]: {exc}')
+                self.channels[topic] = None
+                continue
+            schema = foxglove.Schema(name=type_name, encoding='ros2msg', data=definition.encode())
+            channel = foxglove.Channel(topic, schema=schema, message_encoding='cdr')
+            self.channels[topic] = channel
+            profile, _ = recording_qos(publishers, qos.published_depth(topic))
+            self.create_subscription(cls, topic, self._callback(topic, channel), profile, raw=True)
+            self.get_logger().info(f'serving {topic} [{type_name}]')
+
+    def _callback(self, topic: str, channel: Any) -> Any:
+        def callback(data: bytes) -> None:
+            if self.filter.keep(topic, time.monotonic()):
+                channel.log(bytes(data), log_time=time.time_ns())
+
+        return callback
+
+    def destroy_node(self) -> None:
+        self.server.stop()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('live_view', LiveViewNode, args, errors=(OSError, RuntimeError))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -126,3 +126,27 @@ def test_image_thinning_and_topic_selection() -> None:
     assert all(f.keep('/tf', 0.0) for _ in range(5))
     with pytest.raises(ValueError, match='image_rate'):
         LiveFilter(image_rate=-1.0)
+
+
+def test_the_foxglove_layout_shows_what_the_live_view_serves() -> None:
+    import re
+
+    from activesurv_bringup.experiment import config_path
+
+    layout = json.loads((config_path().parent / 'foxglove_layout.json').read_text())
+    panels = layout['configById']
+
+    def leaves(node: Any) -> list[str]:
+        if isinstance(node, str):
+            return [node]
+        return leaves(node['first']) + leaves(node['second'])
+
+    shown = leaves(layout['layout'])
+    assert sorted(shown) == sorted(panels)  # every panel placed, none missing
+    assert sum(p.startswith('Image!') for p in shown) == 4
+    assert any(p.startswith('3D!') for p in shown)
+    text = json.dumps(panels)
+    topics = set(re.findall(r'"(/[a-z0-9_/]+?)(?:\.|")', text))
+    served = LiveFilter()
+    assert topics
+    assert all(served.wanted(t) for t in topics), [t for t in topics if not served.wanted(t)]

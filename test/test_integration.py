@@ -163,6 +163,8 @@ def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
     for name in ('report.md', 'visibility.png', 'position_error.png', 'orientation.png'):
         assert (graph_run / name).exists(), name
     assert (graph_run / 'predictions_A_fast.png').exists()
+    assert (graph_run / 'scene_A_fast.png').stat().st_size > 10_000  # from the frame tree
+    assert 'scene_A_fast.png' in (graph_run / 'report.md').read_text()
     assert 'fast' in r.stdout
     # The bag's horizons give each demand its prediction 2 s ahead and at the capture request.
     assert after['predictor'] == 'imm'

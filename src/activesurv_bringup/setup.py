@@ -12,7 +12,10 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.json')),
+        (
+            'share/' + package_name + '/config',
+            glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.json'),
+        ),
     ],
     install_requires=['setuptools'],
     zip_safe=False,

@@ -337,6 +337,7 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
         p = plot_predictions(d, out_dir / f'predictions_{d["set"]}_{d["system"]}.png')
         if p is not None:
             plots.append(p)
+    plots += sorted(out_dir.glob('scene_*.png'))  # drawn from the bags' frame trees
     table = summary_table(docs)
     lines = [
         '# activesurv experiment report',
@@ -367,6 +368,26 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
     return path
 
 
+def _scenes(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> None:
+    """``scene_<set>_<system>.png``: the rig from each graph run's frame tree, at its middle
+    demand (runs recorded before the frame tree existed have none)."""
+    from activesurv_bringup.scene import plot_scene
+
+    for run, doc in zip(runs, docs, strict=True):
+        bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
+        rows = doc.get('demands', [])
+        if not (bag / 'metadata.yaml').is_file() or not rows or doc.get('mode') == 'surveil':
+            continue
+        t = float(rows[len(rows) // 2]['t'])
+        name = f'scene_{doc.get("set")}_{doc.get("system")}.png'
+        try:
+            plot_scene(
+                bag, t, out / name, f'Set {doc.get("set")} {doc.get("system")} at {t:.1f} s'
+            )
+        except (KeyError, BagError):
+            continue
+
+
 def report(path: Path) -> tuple[list[dict[str, Any]], Path]:
     """Regenerate results.json of every run under ``path`` and the combined report.
 
@@ -381,6 +402,7 @@ def report(path: Path) -> tuple[list[dict[str, Any]], Path]:
     docs = [load_run(r) for r in runs]
     # A bag's report goes next to it (its run directory); otherwise into the given directory.
     out = path.parent if (path / 'metadata.yaml').is_file() else path
+    _scenes(runs, docs, out)
     sessions = [(r, d) for r, d in zip(runs, docs, strict=True) if d.get('mode') == 'surveil']
     experiments = [d for d in docs if d.get('mode') != 'surveil']
     if sessions and not experiments:

@@ -51,6 +51,8 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
                 frame = await asyncio.wait_for(ws.recv(), timeout=1.0)
             except TimeoutError:
                 continue
+            except websockets.ConnectionClosed:
+                break  # the run ended
             if isinstance(frame, str):
                 msg = json.loads(frame)
                 if msg['op'] == 'serverInfo':

@@ -121,7 +121,7 @@ def run_replay(
     # Every topic is offered reliable + transient local (depth 50), which matches every
     # subscriber. Offering the recorded QoS instead (``playback_qos``, what ``ros2 bag play``
     # does; the recorder notes it faithfully now) lost a camera's answer in 2 of 4 replays of
-    # this session: not yet the default (README, "Noticed").
+    # this session: not yet the default (README, "Recorded QoS").
     faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS') == '1' and (
         isinstance(info.get('recorder'), dict) and info['recorder'].get('qos') == 'offered'
     )

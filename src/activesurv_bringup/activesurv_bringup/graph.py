@@ -75,11 +75,13 @@ def graph_specs(
     faults: Sequence[Fault] = (),
     thin: Sequence[str] = (),
     split_hosts: bool = False,
+    preview_rate: float = 0.0,
 ) -> list[NodeSpec]:
     """Every node of the run with its parameters, in start order (xy table last).
 
     ``thin`` adds topics the recorder thins to ``image_rate``; with ``split_hosts`` each
-    camera's nodes go on host ``camN`` and the rest on ``core``.
+    camera's nodes go on host ``camN`` and the rest on ``core``; ``preview_rate`` (Hz) makes
+    the dynamic cameras stream previews for viewers (never recorded).
     """
     cfg = exp.config
     sim = {'use_sim_time': True}
@@ -97,6 +99,8 @@ def graph_specs(
                 'image_rate': float(image_rate),
                 'run_info': json.dumps(run_info(exp, faults)),
                 'thin_topics': ['/overhead/image_raw', '/overhead/camera_info', *thin],
+                'exclude': ['/rosout', '/parameter_events']
+                + [f'/{s.camera_id}/preview/image_raw' for s in exp.setup.sensors],
             },
         ),
         NodeSpec(
@@ -192,6 +196,7 @@ def graph_specs(
             **sim,
             'camera_id': cid,
             'frame_rate': 0.0,
+            'preview_rate': float(preview_rate),
             'seed': exp.seed * 100 + i,
             **mount_parameters(s),
         }
@@ -451,6 +456,7 @@ def run_graph(
             opts.faults,
             opts.thin,
             split_hosts=hosts is not None,
+            preview_rate=opts.preview_rate,
         )
     if opts.extra:
         specs = specs[:-1] + list(opts.extra) + specs[-1:]

@@ -21,6 +21,7 @@ from rclpy.node import Node
 
 from activesurv_bringup.bagio import message_class, recording_qos, typestore
 from activesurv_bringup.live import DEFAULT_TOPICS, LiveFilter
+from activesurv_bringup.load_node import cdr_header
 from activesurv_common.ros import qos
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -80,8 +81,15 @@ class LiveViewNode(Node):
             self.get_logger().info(f'serving {topic} [{type_name}]')
 
     def _callback(self, topic: str, channel: Any) -> Any:
+        image = topic.endswith('image_raw')
+
         def callback(data: bytes) -> None:
-            if self.filter.keep(topic, time.monotonic()):
+            # Images are thinned by their stamps (steady, whatever the transport's jitter).
+            try:
+                when = cdr_header(bytes(data[:64]))[0] if image else time.monotonic()
+            except ValueError:
+                when = time.monotonic()
+            if self.filter.keep(topic, when):
                 channel.log(bytes(data), log_time=time.time_ns())
 
         return callback

@@ -49,6 +49,7 @@ class RunOptions:
         startup_timeout: wall seconds for the graph to come up.
         extra: further nodes started with the graph (load generators).
         thin: further topics the recorder thins to ``image_rate``.
+        preview_rate: Hz of the dynamic cameras' preview streams for viewers (0: none).
     """
 
     rtf: float = 1.0
@@ -62,6 +63,7 @@ class RunOptions:
     startup_timeout: float = 60.0
     extra: tuple[NodeSpec, ...] = ()
     thin: tuple[str, ...] = ()
+    preview_rate: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rtf) and self.rtf > 0.0):

@@ -136,7 +136,9 @@ def surveil_specs(
     exp: Experiment, bag: Path, s: SurveilOptions, opts: RunOptions
 ) -> list[NodeSpec]:
     """The experiment's node graph, turned continuous: streamed objects, per-object demands."""
-    specs = graph_specs(exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin)
+    specs = graph_specs(
+        exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin, preview_rate=opts.preview_rate
+    )
     info = surveil_info(exp, s)
     out = []
     for spec in specs:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
@@ -35,34 +36,11 @@ from activesurv_common.ros.conversions import (
     time_to_sec,
 )
 from activesurv_common.ros.node import run_node
-from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
 from activesurv_sim.conversions import simulated_camera
 from activesurv_sim.errors import SimError
-
-PARAMS = (
-    Param('camera_id', 'cam1', 'camera id (topic prefix)'),
-    Param(
-        'camera_type',
-        'dynamic',
-        'default optics: dynamic (25 mm) or overhead (12 mm)',
-        choices=('dynamic', 'overhead'),
-    ),
-    Param('intrinsics_file', '', 'camera YAML (camera_calibration layout); overrides the type'),
-    Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
-    Param('trigger_delay', 0.0, 'min s from a demand instant to its frame', minimum=0.0),
-    Param('state_hold', 0.2, 's a state may be extrapolated', minimum=0.0),
-    Param('seed', 0, 'image noise seed'),
-    Param('side_marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
-    Param('top_marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
-    Param('plate_half_size', 0.03, 'half side of the marker plates (m)', above=0.0),
-    Param('blur_sigma', 0.8, 'lens blur (px)', minimum=0.0),
-    Param('electrons_per_level', 40.0, 'shot noise scale', above=0.0),
-    Param('read_noise', 1.0, 'read noise (grey levels)', minimum=0.0),
-    Param('supersample', 8, 'edge supersampling per axis', minimum=1, maximum=16),
-    Param('inject_frozen', False, 'fault: keep sending the first frame'),
-    Param('render_ahead', True, 'render a requested frame when its truth is planned'),
-)
+from activesurv_sim.sim_camera_params import PARAMS
 
 
 class SimCameraNode(Node):
@@ -82,6 +60,9 @@ class SimCameraNode(Node):
         self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
         self._image_pub = self.create_publisher(
             Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
+        )
+        self._preview_pub = self.create_publisher(
+            Image, topics.preview(self.camera_id), qos.SENSOR_RELIABLE
         )
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
@@ -104,10 +85,13 @@ class SimCameraNode(Node):
         self._pending: set[float] = set()
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
-        rate = float(g('frame_rate').value)
-        self._last_streamed = -math.inf
+        rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
+        self._last_streamed = {False: -math.inf, True: -math.inf}
         if rate > 0.0:
             self.create_timer(1.0 / rate, self._on_stream)
+        if preview > 0.0:
+            steady = Clock(clock_type=ClockType.STEADY_TIME)  # for viewers: wall time
+            self.create_timer(1.0 / preview, lambda: self._on_stream(preview=True), clock=steady)
         self.frames_published = 0
         self.frames_ahead = 0
         self._frozen: Any = None
@@ -154,7 +138,7 @@ class SimCameraNode(Node):
             except (SimError, CommonError) as exc:
                 self.get_logger().warning(f'no frame ahead for t={t:.3f}: {exc}')
 
-    def _publish(self, t: float) -> None:
+    def _publish(self, t: float, preview: bool = False) -> None:
         hold = float(self.get_parameter('state_hold').value)
         try:
             gray, ahead = self.sim.frame_at(t, hold)
@@ -166,6 +150,9 @@ class SimCameraNode(Node):
             if self._frozen is None:
                 self._frozen = gray
             gray = self._frozen  # a stuck camera: the same pixels, fresh stamps
+        if preview:  # for viewers: no camera_info, no imaging
+            self._preview_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+            return
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
         self.frames_published += 1
@@ -183,11 +170,11 @@ class SimCameraNode(Node):
             self._pending.discard(t)
             self._publish(t)
 
-    def _on_stream(self) -> None:
+    def _on_stream(self, preview: bool = False) -> None:
         t = self.sim.objects.latest_time
-        if t is not None and t > self._last_streamed:
-            self._last_streamed = t
-            self._publish(t)
+        if t is not None and t > self._last_streamed[preview]:
+            self._last_streamed[preview] = t
+            self._publish(t, preview)
 
 
 def main(args: list[str] | None = None) -> int:

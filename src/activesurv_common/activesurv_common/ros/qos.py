@@ -77,6 +77,7 @@ PUBLISHED: dict[str, QoSProfile] = {
     '/*/stage/goal': GOAL,
     '/*/imager/heartbeat': SENSOR,
     '/*/marker_annotations': EVENTS,
+    '/*/preview/image_raw': SENSOR_RELIABLE,
     '/sim/planned_object_state': EVENTS,
     '/sim/*/planned_joint_states': EVENTS,
 }

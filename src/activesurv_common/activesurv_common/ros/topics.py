@@ -43,6 +43,11 @@ def camera_info(camera_id: str) -> str:
     return f'{camera_id}/camera_info'
 
 
+def preview(camera_id: str) -> str:
+    """A free-running image stream for viewers (sensor_msgs/Image; not imaged, not recorded)."""
+    return f'{camera_id}/preview/image_raw'
+
+
 def marker_annotations(camera_id: str) -> str:
     """The imager's drawing over its image (visualization_msgs/ImageMarker)."""
     return f'{camera_id}/marker_annotations'

@@ -1,0 +1,35 @@
+"""Parameters of the ``sim_camera`` node (``config/sim_camera.yaml`` is generated from them)."""
+
+from __future__ import annotations
+
+from activesurv_common.ros.parameters import Param
+
+PARAMS = (
+    Param('camera_id', 'cam1', 'camera id (topic prefix)'),
+    Param(
+        'camera_type',
+        'dynamic',
+        'default optics: dynamic (25 mm) or overhead (12 mm)',
+        choices=('dynamic', 'overhead'),
+    ),
+    Param('intrinsics_file', '', 'camera YAML (camera_calibration layout); overrides the type'),
+    Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
+    Param(
+        'preview_rate',
+        0.0,
+        'Hz of a free-running preview on <cam>/preview/image_raw for viewers (not imaged)',
+        minimum=0.0,
+    ),
+    Param('trigger_delay', 0.0, 'min s from a demand instant to its frame', minimum=0.0),
+    Param('state_hold', 0.2, 's a state may be extrapolated', minimum=0.0),
+    Param('seed', 0, 'image noise seed'),
+    Param('side_marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
+    Param('top_marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
+    Param('plate_half_size', 0.03, 'half side of the marker plates (m)', above=0.0),
+    Param('blur_sigma', 0.8, 'lens blur (px)', minimum=0.0),
+    Param('electrons_per_level', 40.0, 'shot noise scale', above=0.0),
+    Param('read_noise', 1.0, 'read noise (grey levels)', minimum=0.0),
+    Param('supersample', 8, 'edge supersampling per axis', minimum=1, maximum=16),
+    Param('inject_frozen', False, 'fault: keep sending the first frame'),
+    Param('render_ahead', True, 'render a requested frame when its truth is planned'),
+)

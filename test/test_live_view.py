@@ -105,7 +105,11 @@ def test_a_graph_run_is_served_to_a_foxglove_client(tmp_path: Path) -> None:
     assert tf['schemaEncoding'] == 'ros2msg'
     assert 'geometry_msgs/TransformStamped[] transforms' in tf['schema']
     images = [t for t in seen['channels'] if t.endswith('/image_raw')]
-    assert {'/cam1/image_raw', '/overhead/image_raw'} <= set(images)
+    assert {'/cam1/image_raw', '/cam1/preview/image_raw', '/overhead/image_raw'} <= set(images)
+    # Previews are for viewers: they never reach the bag.
+    meta = (out / 'bag' / 'metadata.yaml').read_text()
+    assert '/cam1/image_raw' in meta
+    assert 'preview' not in meta
     # The bytes are the ROS 2 messages themselves: they deserialize as such.
     static = deserialize_message(seen['messages']['/tf_static'][0][1], TFMessage)
     children = {t.child_frame_id for t in static.transforms}

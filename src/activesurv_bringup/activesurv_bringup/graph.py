@@ -100,7 +100,10 @@ def graph_specs(
                 'run_info': json.dumps(run_info(exp, faults)),
                 'thin_topics': ['/overhead/image_raw', '/overhead/camera_info', *thin],
                 'exclude': ['/rosout', '/parameter_events']
-                + [f'/{s.camera_id}/preview/image_raw' for s in exp.setup.sensors],
+                + [
+                    f'/{c}/preview/image_raw'
+                    for c in ['overhead', *(s.camera_id for s in exp.setup.sensors)]
+                ],
             },
         ),
         NodeSpec(

@@ -61,9 +61,6 @@ class SimCameraNode(Node):
         self._image_pub = self.create_publisher(
             Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
         )
-        self._preview_pub = self.create_publisher(
-            Image, topics.preview(self.camera_id), qos.SENSOR_RELIABLE
-        )
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
         )
@@ -90,6 +87,9 @@ class SimCameraNode(Node):
         if rate > 0.0:
             self.create_timer(1.0 / rate, self._on_stream)
         if preview > 0.0:
+            self._preview_pub = self.create_publisher(
+                Image, topics.preview(self.camera_id), qos.SENSOR_RELIABLE
+            )
             steady = Clock(clock_type=ClockType.STEADY_TIME)  # for viewers: wall time
             self.create_timer(1.0 / preview, lambda: self._on_stream(preview=True), clock=steady)
         self.frames_published = 0

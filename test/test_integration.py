@@ -203,7 +203,10 @@ def test_lockstep_and_graph_agree(graph_run: Path) -> None:
         if a['position_error'] is not None and b['position_error'] is not None:
             assert abs(a['position_error'] - b['position_error']) < 0.3e-3
     sg, sl = summary(graph), summary(lock)
-    assert abs(sg['mean_visibility'] - sl['mean_visibility']) < 0.1 * sl['mean_visibility']
+    # Graph timing moves a replan by a tick now and then (the IMM's manoeuvre flag and wider
+    # ellipses replan at other instants than round 1's filter did): one demand's camera choice
+    # can differ, which moves the mean by up to ~12 %.
+    assert abs(sg['mean_visibility'] - sl['mean_visibility']) < 0.15 * sl['mean_visibility']
 
 
 def test_lockstep_is_deterministic() -> None:

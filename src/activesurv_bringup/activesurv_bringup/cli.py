@@ -93,15 +93,7 @@ def _build_parser() -> argparse.ArgumentParser:
     exp.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
     )
-    exp.add_argument(
-        '--foxglove',
-        type=int,
-        nargs='?',
-        const=8765,
-        default=None,
-        metavar='PORT',
-        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
-    )
+    _add_foxglove(exp)
     exp.add_argument(
         '--compose',
         action='store_true',
@@ -138,29 +130,13 @@ def _build_parser() -> argparse.ArgumentParser:
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag'
     )
     sv.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
-    sv.add_argument(
-        '--foxglove',
-        type=int,
-        nargs='?',
-        const=8765,
-        default=None,
-        metavar='PORT',
-        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
-    )
+    _add_foxglove(sv)
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     rpl.add_argument('--rtf', type=float, default=1.0, help='bag s per wall s')
-    rpl.add_argument(
-        '--foxglove',
-        type=int,
-        nargs='?',
-        const=8765,
-        default=None,
-        metavar='PORT',
-        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
-    )
+    _add_foxglove(rpl)
 
     rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
@@ -190,6 +166,18 @@ def _build_parser() -> argparse.ArgumentParser:
 
     add_arguments(stages.add_subparsers(dest='stages_command', required=True))
     return parser
+
+
+def _add_foxglove(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        '--foxglove',
+        type=int,
+        nargs='?',
+        const=8765,
+        default=None,
+        metavar='PORT',
+        help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
+    )
 
 
 def run_options(args: argparse.Namespace) -> RunOptions:

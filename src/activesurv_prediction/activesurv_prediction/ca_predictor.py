@@ -32,7 +32,13 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_prediction.base import UpdateResult, check_fix, check_positive, check_time
+from activesurv_prediction.base import (
+    OutlierGate,
+    UpdateResult,
+    check_fix,
+    check_positive,
+    check_time,
+)
 from activesurv_prediction.errors import PredictionError
 
 Array = NDArray[np.float64]
@@ -87,24 +93,21 @@ class ConstantAccelerationPredictor:
             initial_velocity_std=initial_velocity_std,
             initial_acceleration_std=initial_acceleration_std,
         )
-        if not (math.isfinite(gate) and gate >= 0.0):
-            raise PredictionError(f'gate must be finite and >= 0, got {gate}')
-        if max_rejections < 1:
-            raise PredictionError(f'max_rejections must be >= 1, got {max_rejections}')
         self.measurement_std = float(measurement_std)
         self.jerk_variance = float(jerk_std) ** 2
         self.initial_velocity_std = float(initial_velocity_std)
         self.initial_acceleration_std = float(initial_acceleration_std)
-        self.gate = float(gate)
-        self.max_rejections = int(max_rejections)
+        self.outliers = OutlierGate(gate, max_rejections)
         self.kf = KalmanFilter(dim_x=6, dim_z=2)
         self.kf.H = H.copy()
         self.kf.R = np.eye(2) * self.measurement_std**2
         self.last_time: float | None = None
         self.updates = 0
-        self.rejections = 0
-        self.consecutive_rejections = 0
-        self._rejected: list[tuple[float, Array]] = []
+
+    @property
+    def rejections(self) -> int:
+        """Fixes gated out as outliers so far."""
+        return self.outliers.rejections
 
     @property
     def initialized(self) -> bool:
@@ -118,8 +121,7 @@ class ConstantAccelerationPredictor:
         """Forget the track."""
         self.last_time = None
         self.updates = 0
-        self.consecutive_rejections = 0
-        self._rejected.clear()
+        self.outliers.clear()
 
     def _start(
         self, t: float, xy: Array, velocity: Array | None = None, velocity_std: float | None = None
@@ -132,8 +134,7 @@ class ConstantAccelerationPredictor:
         self.kf.P[:3, :3] = p
         self.kf.P[3:, 3:] = p
         self.last_time = t
-        self.consecutive_rejections = 0
-        self._rejected.clear()
+        self.outliers.clear()
 
     def update(self, t: float, xy: ArrayLike) -> UpdateResult:
         """Add an overhead fix ``xy`` (world, m) taken at ``t`` (s).
@@ -162,25 +163,14 @@ class ConstantAccelerationPredictor:
         innovation = z - (H @ self.kf.x).reshape(2)
         S = H @ self.kf.P @ H.T + self.kf.R
         d2 = float(innovation @ np.linalg.solve(S, innovation))
-        if self.gate > 0.0 and d2 > self.gate:
-            self.rejections += 1
-            self.consecutive_rejections += 1
-            self._rejected.append((t, z))
-            if self.consecutive_rejections < self.max_rejections:
-                return UpdateResult(False, d2)
-            # Not an outlier but a manoeuvre: restart from the rejected fixes.
-            # The rejected fixes agree with each other: restart from them, with the velocity
-            # they show and an uncertainty from the fix noise, not the cold-start prior.
-            (t0, z0), (t1, z1) = self._rejected[0], self._rejected[-1]
-            span = t1 - t0
-            v = (z1 - z0) / span if span > 0 else None
-            v_std = 2.0 * self.measurement_std / span if span > 0 else None
-            self._start(t, z, v, v_std)
+        verdict = self.outliers.judge(t, z, d2)
+        if verdict == 'reject':
+            return UpdateResult(False, d2)
+        if verdict == 'restart':  # not an outlier but a manoeuvre: restart from the fixes
+            self._start(t, z, *self.outliers.restart_velocity(self.measurement_std))
             self.updates += 1
             return UpdateResult(True, d2, restarted=True)
         self.kf.update(z)
-        self.consecutive_rejections = 0
-        self._rejected.clear()
         self.updates += 1
         return UpdateResult(True, d2)
 

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike
 from activesurv_prediction import imm
 from activesurv_prediction.base import (
     Array,
+    OutlierGate,
     Predictor,
     UpdateResult,
     check_fix,
@@ -82,17 +83,12 @@ class TargetPredictor:
         mu0 = np.asarray(initial_probabilities, dtype=np.float64).reshape(-1)
         if mu0.shape != (3,) or np.any(mu0 < 0.0) or not math.isclose(mu0.sum(), 1.0):
             raise PredictionError('initial_probabilities: three numbers >= 0 summing to 1')
-        if not (math.isfinite(gate) and gate >= 0.0):
-            raise PredictionError(f'gate must be finite and >= 0, got {gate}')
-        if max_rejections < 1:
-            raise PredictionError(f'max_rejections must be >= 1, got {max_rejections}')
         self.measurement_std = float(measurement_std)
         self.r = self.measurement_std**2
         self.modes = modes or imm.ModeSet()
         self.initial_velocity_std = float(initial_velocity_std)
         self.mu0 = mu0
-        self.gate = float(gate)
-        self.max_rejections = int(max_rejections)
+        self.outliers = OutlierGate(gate, max_rejections)
         if not (math.isfinite(step) and 0.0 < step <= 2.0):
             raise PredictionError(f'step must be in (0, 2] s, got {step}')
         self.step = float(step)
@@ -102,13 +98,15 @@ class TargetPredictor:
         self.states: imm.ModeStates | None = None
         self.last_time: float | None = None
         self.updates = 0
-        self.rejections = 0
-        self.consecutive_rejections = 0
-        self._rejected: list[tuple[float, Array]] = []
         self._steps: dict[float, tuple[Array, Array, Array]] = {}
         self._grid = self.modes.grid(self.step)
 
     # -- state -------------------------------------------------------------------------------
+    @property
+    def rejections(self) -> int:
+        """Fixes gated out as outliers so far."""
+        return self.outliers.rejections
+
     @property
     def initialized(self) -> bool:
         return self.last_time is not None
@@ -135,8 +133,7 @@ class TargetPredictor:
         self._reference_misses = 0
         self.last_time = None
         self.updates = 0
-        self.consecutive_rejections = 0
-        self._rejected.clear()
+        self.outliers.clear()
 
     def _start(
         self, t: float, xy: Array, velocity: Array | None = None, velocity_std: float | None = None
@@ -157,8 +154,7 @@ class TargetPredictor:
         self.reference.start(t, xy, v, v_std, self.modes.acceleration_std)
         self._reference_misses = 0
         self.last_time = t
-        self.consecutive_rejections = 0
-        self._rejected.clear()
+        self.outliers.clear()
 
     # -- filtering ---------------------------------------------------------------------------
     def update(self, t: float, xy: ArrayLike) -> UpdateResult:
@@ -186,25 +182,16 @@ class TargetPredictor:
         self.states = predicted
         self.last_time = t
         updated, d2 = imm.update(predicted, z, self.r)
-        if self.gate > 0.0 and d2 > self.gate:
-            self.rejections += 1
-            self.consecutive_rejections += 1
-            self._rejected.append((t, z))
-            if self.consecutive_rejections < self.max_rejections:
-                return UpdateResult(False, d2)
-            # Not an outlier but a jump: restart from the rejected fixes, which agree.
-            (t0, z0), (t1, z1) = self._rejected[0], self._rejected[-1]
-            span = t1 - t0
-            v = (z1 - z0) / span if span > 0 else None
-            v_std = 2.0 * self.measurement_std / span if span > 0 else None
-            self._start(t, z, v, v_std)
+        verdict = self.outliers.judge(t, z, d2)
+        if verdict == 'reject':
+            return UpdateResult(False, d2)
+        if verdict == 'restart':  # not an outlier but a manoeuvre: restart from the fixes
+            self._start(t, z, *self.outliers.restart_velocity(self.measurement_std))
             self.updates += 1
             return UpdateResult(True, d2, restarted=True)
         was_stopped = predicted.mu[imm.STATIONARY] >= 0.5
         self.states = updated
         self._update_reference(t, z, was_stopped)
-        self.consecutive_rejections = 0
-        self._rejected.clear()
         self.updates += 1
         return UpdateResult(True, d2)
 

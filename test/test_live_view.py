@@ -44,6 +44,7 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
     else:
         raise AssertionError('the live view never listened')
     subscribed: dict[int, str] = {}
+    late: dict[str, int] = {}  # /tf_static: subscribed to only once the run is going
     async with ws:
         assert ws.subprotocol == 'foxglove.sdk.v1'
         while time.monotonic() < deadline:
@@ -61,7 +62,9 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
                     subs = []
                     for ch in msg['channels']:
                         seen['channels'][ch['topic']] = ch
-                        if ch['topic'] in ('/tf', '/tf_static', '/demand_horizon') or ch[
+                        if ch['topic'] == '/tf_static':
+                            late[ch['topic']] = ch['id']
+                        elif ch['topic'] in ('/tf', '/demand_horizon') or ch[
                             'topic'
                         ].endswith('/image_raw'):
                             sid = len(subscribed) + 1
@@ -73,6 +76,11 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
                 sid, log_time = struct.unpack_from('<IQ', frame, 1)
                 topic = subscribed[sid]
                 seen['messages'].setdefault(topic, []).append((log_time, bytes(frame[13:])))
+                if late and len(seen['messages'].get('/tf', ())) >= 20:
+                    # A viewer that connects late still gets the latched frame tree.
+                    subs = [{'id': len(subscribed) + 1, 'channelId': late.pop('/tf_static')}]
+                    subscribed[subs[0]['id']] = '/tf_static'
+                    await ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subs}))
             done = {'/tf', '/tf_static'} <= set(seen['messages']) and any(
                 t.endswith('/image_raw') for t in seen['messages']
             )
@@ -156,3 +164,20 @@ def test_the_foxglove_layout_shows_what_the_live_view_serves() -> None:
     served = LiveFilter()
     assert topics
     assert all(served.wanted(t) for t in topics), [t for t in topics if not served.wanted(t)]
+
+
+def test_latched_messages_reach_late_subscribers() -> None:
+    from activesurv_bringup.live import LatchedCache
+
+    cache = LatchedCache()
+    cache.latch('/tf_static', 1)
+    cache.remember('/tf_static', b'a')
+    cache.remember('/tf_static', b'b')
+    cache.remember('/tf', b'x')  # not latched: never kept
+    cache.subscribed('/tf')
+    assert cache.due() == []
+    cache.subscribed('/tf_static')
+    assert cache.due() == [('/tf_static', [b'b'])]
+    assert cache.due() == []  # once per subscription
+    with pytest.raises(ValueError, match='depth'):
+        cache.latch('/x', 0)

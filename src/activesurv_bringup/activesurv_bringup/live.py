@@ -9,6 +9,8 @@ everything else passes.
 from __future__ import annotations
 
 import fnmatch
+import threading
+from collections import deque
 from collections.abc import Sequence
 
 DEFAULT_TOPICS = (
@@ -63,3 +65,44 @@ class LiveFilter:
             self._last[topic] = now
         self.passed += 1
         return True
+
+
+class LatchedCache:
+    """The last messages of latched (transient-local) topics, for viewers that come late.
+
+    A latched topic (``/tf_static``, ``/demand_horizon``) is published once; the server drops
+    what nobody subscribes to, so a viewer that connects later would never see the frame tree.
+    As ROS does for a late subscriber, the cache hands the last ``depth`` messages to every new
+    subscription. Thread-safe: the server reports subscriptions from its own thread.
+    """
+
+    def __init__(self) -> None:
+        self._kept: dict[str, deque[bytes]] = {}
+        self._pending: set[str] = set()
+        self._lock = threading.Lock()
+
+    def latch(self, topic: str, depth: int) -> None:
+        """Keep the last ``depth`` messages of ``topic``."""
+        if depth < 1:
+            raise ValueError(f'depth must be >= 1, got {depth}')
+        with self._lock:
+            self._kept.setdefault(topic, deque(maxlen=depth))
+
+    def remember(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            kept = self._kept.get(topic)
+            if kept is not None:
+                kept.append(data)
+
+    def subscribed(self, topic: str) -> None:
+        """A viewer subscribed to ``topic``: its kept messages are due."""
+        with self._lock:
+            if topic in self._kept:
+                self._pending.add(topic)
+
+    def due(self) -> list[tuple[str, list[bytes]]]:
+        """The kept messages of every topic subscribed to since the last call."""
+        with self._lock:
+            out = [(t, list(self._kept[t])) for t in sorted(self._pending) if self._kept[t]]
+            self._pending.clear()
+        return out

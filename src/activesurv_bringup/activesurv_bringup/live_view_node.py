@@ -18,9 +18,10 @@ from typing import Any
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
 
 from activesurv_bringup.bagio import message_class, recording_qos, typestore
-from activesurv_bringup.live import DEFAULT_TOPICS, LiveFilter
+from activesurv_bringup.live import DEFAULT_TOPICS, LatchedCache, LiveFilter
 from activesurv_bringup.load_node import cdr_header
 from activesurv_common.ros import qos
 from activesurv_common.ros.node import run_node
@@ -45,8 +46,12 @@ class LiveViewNode(Node):
         self.filter = LiveFilter(list(v['topics']), float(v['image_rate']))
         self.ts = typestore()
         self.channels: dict[str, Any] = {}
+        self.latched = LatchedCache()
         self.server = foxglove.start_server(
-            name='activesurv', host=str(v['host']), port=int(v['port'])
+            name='activesurv',
+            host=str(v['host']),
+            port=int(v['port']),
+            server_listener=_listener(self.latched),
         )
         self.get_logger().info(f'Foxglove live view on ws://{v["host"]}:{self.server.port}')
         self.create_timer(
@@ -54,7 +59,14 @@ class LiveViewNode(Node):
             self._discover,
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
+        self.create_timer(0.2, self._replay_latched, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._discover()
+
+    def _replay_latched(self) -> None:
+        # A viewer that subscribes late still gets the latched messages, as a ROS subscriber would.
+        for topic, messages in self.latched.due():
+            for data in messages:
+                self.channels[topic].log(data, log_time=time.time_ns())
 
     def _discover(self) -> None:
         import foxglove
@@ -77,6 +89,8 @@ class LiveViewNode(Node):
             channel = foxglove.Channel(topic, schema=schema, message_encoding='cdr')
             self.channels[topic] = channel
             profile, _ = recording_qos(publishers, qos.published_depth(topic))
+            if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+                self.latched.latch(topic, qos.published_depth(topic) or 1)
             self.create_subscription(cls, topic, self._callback(topic, channel), profile, raw=True)
             self.get_logger().info(f'serving {topic} [{type_name}]')
 
@@ -91,12 +105,24 @@ class LiveViewNode(Node):
                 when = time.monotonic()
             if self.filter.keep(topic, when):
                 channel.log(bytes(data), log_time=time.time_ns())
+                self.latched.remember(topic, bytes(data))
 
         return callback
 
     def destroy_node(self) -> None:
         self.server.stop()
         super().destroy_node()
+
+
+def _listener(latched: LatchedCache) -> Any:
+    """The server's subscription events (called from its own thread) go to ``latched``."""
+    from foxglove.websocket import ServerListener
+
+    class Listener(ServerListener):
+        def on_subscribe(self, client: Any, channel: Any) -> None:
+            latched.subscribed(str(channel.topic))
+
+    return Listener()
 
 
 def main(args: list[str] | None = None) -> int:

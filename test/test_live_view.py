@@ -64,9 +64,9 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
                         seen['channels'][ch['topic']] = ch
                         if ch['topic'] == '/tf_static':
                             late[ch['topic']] = ch['id']
-                        elif ch['topic'] in ('/tf', '/demand_horizon') or ch[
-                            'topic'
-                        ].endswith('/image_raw'):
+                        elif ch['topic'] in ('/tf', '/demand_horizon') or ch['topic'].endswith(
+                            '/image_raw'
+                        ):
                             sid = len(subscribed) + 1
                             subscribed[sid] = ch['topic']
                             subs.append({'id': sid, 'channelId': ch['id']})

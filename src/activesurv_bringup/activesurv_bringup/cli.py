@@ -4,7 +4,7 @@
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
-        [--predictor {imm,ca}]
+        [--predictor {imm,ca}] [--rig RIG.yaml] [--calibration {CALDIR,nominal,truth}]
         [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
         [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
         [--hosts {single,netns}]
@@ -14,7 +14,10 @@
         [--system {static,medium,fast}]
     activesurv report RUN_DIR_OR_BAG
     activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
-    activesurv demo [--out DIR] [--mode {graph,lockstep}]
+    activesurv demo [--out DIR] [--mode {graph,lockstep}] [--rig RIG.yaml]
+        [--calibration {CALDIR,nominal,truth}]
+    activesurv rig nominal --out RIG.yaml
+    activesurv rig perturb --in RIG.yaml --seed S --out RIG2.yaml
     activesurv bag reindex BAG
     activesurv stages {probe,move,emulate} ...
 """
@@ -94,6 +97,7 @@ def _build_parser() -> argparse.ArgumentParser:
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag (0: all)'
     )
     _add_foxglove(exp)
+    _add_rig(exp)
     exp.add_argument(
         '--compose',
         action='store_true',
@@ -153,6 +157,12 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--rtf', type=float, default=1.0)
     demo.add_argument('--processes', choices=PROCESSES, default='containers')
     demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
+    _add_rig(demo)
+
+    rig = sub.add_parser('rig', help='rig files: the simulated hardware (nominal, perturb)')
+    from activesurv_bringup.rigs import add_arguments as add_rig_arguments
+
+    add_rig_arguments(rig.add_subparsers(dest='rig_command', required=True))
 
     bag = sub.add_parser('bag', help='bag tools (reindex a bag whose recorder was killed)')
     bag_sub = bag.add_subparsers(dest='bag_command', required=True)
@@ -177,6 +187,22 @@ def _add_foxglove(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar='PORT',
         help='serve the run live over the Foxglove WebSocket protocol (default port 8765)',
+    )
+
+
+def _add_rig(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        '--rig',
+        type=Path,
+        default=None,
+        help='rig YAML: the simulated hardware (default: the nominal rig perturbed with --seed)',
+    )
+    parser.add_argument(
+        '--calibration',
+        default=None,
+        metavar='{CALDIR,nominal,truth}',
+        help='what the system is told about the rig: a calibration directory, the nominal '
+        'values, or the rig itself (default: truth)',
     )
 
 
@@ -216,6 +242,8 @@ def experiment(
     expect: str | None = None,
     options: RunOptions | None = None,
     predictor: str = 'imm',
+    rig: Path | None = None,
+    calibration: str | None = None,
 ) -> dict[str, Any]:
     """Run one experiment into ``out`` (new or empty); returns its results document.
 
@@ -228,7 +256,10 @@ def experiment(
     opts = options or RunOptions()
     if opts.kills and mode != 'graph':
         raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
-    exp = load_experiment(set_name, system, seed, trajectory, expect)
+    from activesurv_bringup.rigs import choose
+
+    choice = choose(rig, calibration, seed)
+    exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
     exp.config['predictor']['model'] = predictor
     new_output_dir(out)
     started = time.monotonic()
@@ -253,6 +284,7 @@ def experiment(
                 'mode': 'lockstep',
                 'predictor': predictor,
                 'faults': [str(f) for f in opts.faults],
+                **choice.describe(),
             },
         )
         write_results(out / 'results.json', doc)
@@ -356,7 +388,12 @@ def report(path: Path) -> Path:
 
 
 def demo(
-    out: Path | None, seed: int = 1, mode: str = 'graph', options: RunOptions | None = None
+    out: Path | None,
+    seed: int = 1,
+    mode: str = 'graph',
+    options: RunOptions | None = None,
+    rig: Path | None = None,
+    calibration: str | None = None,
 ) -> Path:
     """The six experiments and their report, in a new directory; returns it."""
     from activesurv_bringup.report import summary_table, write_report
@@ -370,7 +407,14 @@ def demo(
             print(f'activesurv demo: Set {set_name}, {system} system ({mode})', flush=True)
             docs.append(
                 experiment(
-                    set_name, system, root / f'{set_name}_{system}', seed, mode, options=options
+                    set_name,
+                    system,
+                    root / f'{set_name}_{system}',
+                    seed,
+                    mode,
+                    options=options,
+                    rig=rig,
+                    calibration=calibration,
                 )
             )
     path = write_report(docs, root)
@@ -401,6 +445,8 @@ def main(argv: list[str] | None = None) -> int:
                 args.expect,
                 run_options(args),
                 args.predictor,
+                args.rig,
+                args.calibration,
             )
         elif args.command == 'surveil':
             from activesurv_bringup.surveil import SurveilOptions, parse_demand_at
@@ -424,7 +470,11 @@ def main(argv: list[str] | None = None) -> int:
         elif args.command == 'report':
             report(args.path)
         elif args.command == 'demo':
-            demo(args.out, args.seed, args.mode, run_options(args))
+            demo(args.out, args.seed, args.mode, run_options(args), args.rig, args.calibration)
+        elif args.command == 'rig':
+            from activesurv_bringup.rigs import run as write_rig
+
+            print(f'rig written: {write_rig(args)}')
         else:
             return 2
     except (BringupError, OSError, ValueError) as exc:

@@ -20,10 +20,15 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.rigs import RigChoice
+from activesurv_common.camera_model import CameraModel, overhead_camera
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.mount import CameraMount
 from activesurv_common.sensor_model import SensorModel
+from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.initial_pose import initial_poses
 from activesurv_dispatch.planner import Demand
-from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup
+from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup, setup_to_dict
 from activesurv_sim.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
 from activesurv_stages.errors import ConfigError as StageConfigError
 
@@ -86,8 +91,9 @@ class Experiment:
     actual: TimedPath
     expected: TimedPath
     demand_times: tuple[float, ...]
-    setup: Setup
+    setup: Setup  # what the system believes: the calibration's mounts and intrinsics
     model: SensorModel
+    rig: RigChoice | None = None  # the simulated hardware; None: exactly the set-up (round 1)
 
     @property
     def object_model(self) -> ObjectModel:
@@ -101,9 +107,28 @@ class Experiment:
         return float(self.config['object']['start_time'])
 
     def table(self, expected: bool = False) -> XYTable:
-        return XYTable(
-            self.expected if expected else self.actual, self.start_time, self.object_model
-        )
+        """The object on the xy table (the actual path with the rig's table errors)."""
+        if expected:
+            return XYTable(self.expected, self.start_time, self.object_model)
+        error = self.rig.rig.table_offset if self.rig is not None else None
+        return XYTable(self.actual, self.start_time, self.object_model, error)
+
+    def true_camera(self, camera_id: str) -> tuple[CameraModel, CameraMount]:
+        """A dynamic camera as it really is: the rig's optics and mount with stage errors."""
+        if self.rig is None:
+            s = self.setup.sensor(camera_id)
+            return s.camera, s.mount
+        rc = self.rig.rig.camera(camera_id)
+        return rc.camera, rc.true_mount()
+
+    def overhead(self, truth: bool) -> tuple[CameraModel, Transform]:
+        """The overhead camera's optics and pose: as they are, or as the system believes."""
+        if self.rig is not None:
+            if truth:
+                return self.rig.rig.overhead, self.rig.rig.overhead_pose
+            return self.rig.calibration.overhead, self.rig.calibration.overhead_pose
+        pose = [float(v) for v in self.config['overhead']['pose']]
+        return overhead_camera(), Transform.from_rt(matrix_from_quaternion(pose[3:]), pose[:3])
 
     def demands_on(self, expected: bool) -> list[Demand]:
         """Demand points along the actual or expected path (truth for evaluation/placement)."""
@@ -120,7 +145,9 @@ class Experiment:
         return self.demand_times[-1] + 1.0
 
     def summary(self) -> dict[str, Any]:
+        rig = self.rig.describe() if self.rig is not None else {'rig': None, 'calibration': None}
         return {
+            **rig,
             'set': self.set_name,
             'system': self.system,
             'seed': self.seed,
@@ -171,6 +198,7 @@ def load_experiment(
     trajectory: str | None = None,
     expect: str | None = None,
     config_file: Path | None = None,
+    rig: RigChoice | None = None,
 ) -> Experiment:
     """Build one experiment.
 
@@ -181,6 +209,8 @@ def load_experiment(
         trajectory: a ``t,x,y`` CSV replacing the object's actual path.
         expect: ``parabolic``, ``diagonal`` or a CSV path: the path initial placement assumes.
         config_file: experiments YAML (default: the packaged one).
+        rig: the simulated hardware and the calibration the system uses (None: the set-up
+            itself is the truth, as in round 1).
 
     Raises:
         ConfigError: for an unknown set or system, or a bad path or config.
@@ -218,15 +248,22 @@ def load_experiment(
         raise ConfigError(f'experiment config {path}: {exc!r}') from exc
     model = SensorModel.load()
     setup = load_setup(motion=system)
+    belief = ''
+    if rig is not None:
+        try:
+            setup = setup.calibrated(rig.calibration.mounts, rig.calibration.cameras)
+        except DispatchConfigError as exc:
+            raise ConfigError(str(exc)) from exc
+        belief = json.dumps(setup_to_dict(setup), sort_keys=True)
     exp = Experiment(
-        set_name, system, seed, cfg, actual_spec, actual, expected, times, setup, model
+        set_name, system, seed, cfg, actual_spec, actual, expected, times, setup, model, rig
     )
     placed = _cached_initial(
         setup,
         model,
         exp.demands_on(expected=True),
         k,
-        f'{system}|{json.dumps(cfg, sort_keys=True)}|{expect}',
+        f'{system}|{json.dumps(cfg, sort_keys=True)}|{expect}|{belief}',
     )
     return Experiment(
         set_name,
@@ -239,4 +276,5 @@ def load_experiment(
         times,
         setup.with_initial(placed),
         model,
+        rig,
     )

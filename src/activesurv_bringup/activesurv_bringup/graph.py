@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import yaml
+
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiment import Experiment
 from activesurv_bringup.faults import Fault, FaultKind, Kill, imager_injection
@@ -28,6 +30,7 @@ from activesurv_bringup.options import RunOptions, scoped_environ
 if TYPE_CHECKING:
     from activesurv_bringup.compose import Composition
     from activesurv_bringup.netns import NetnsHosts
+from activesurv_common.calibration import pose_to_list
 from activesurv_dispatch.sensors import Sensor
 
 Progress = Callable[[str], None]
@@ -42,6 +45,26 @@ def mount_parameters(sensor: Sensor) -> dict[str, Any]:
         'mount.pitch': float(m.pitch),
         'mount.offset': [float(v) for v in m.offset],
         'mount.linear_axis': [float(v) for v in axis],
+    }
+
+
+def rig_files(exp: Experiment, out: Path) -> dict[str, str]:
+    """Write the run's rig (the simulator's truth), its calibration and the believed set-up
+    into ``out/rig`` for the nodes; returns the paths (empty without a rig)."""
+    if exp.rig is None:
+        return {}
+    from activesurv_dispatch.sensors import setup_to_dict
+    from activesurv_sim.rig import save_rig
+
+    d = out / 'rig'
+    d.mkdir(parents=True, exist_ok=True)
+    save_rig(exp.rig.rig, d / 'rig.yaml')
+    exp.rig.calibration.save(d / 'calibration')
+    (d / 'setup.yaml').write_text(yaml.safe_dump(setup_to_dict(exp.setup), sort_keys=False))
+    return {
+        'rig_file': str(d / 'rig.yaml'),
+        'calibration': str(d / 'calibration'),
+        'setup_file': str(d / 'setup.yaml'),
     }
 
 
@@ -86,7 +109,14 @@ def graph_specs(
     cfg = exp.config
     sim = {'use_sim_time': True}
     obj = cfg['object']
-    over = [float(v) for v in cfg['overhead']['pose']]
+    files = rig_files(exp, bag.parent)
+    over = pose_to_list(exp.overhead(truth=False)[1])  # as the system believes it
+    truth = {'rig_file': files['rig_file']} if files else {}
+    believed = {'setup_file': files['setup_file']} if files else {}
+
+    def info(camera_id: str) -> dict[str, str]:
+        return {'camera_info_file': f'{files["calibration"]}/{camera_id}.yaml'} if files else {}
+
     by_cam = {f.camera: f for f in faults}
     pc, dc = cfg['predictor'], cfg['dispatch']
     specs = [
@@ -114,6 +144,8 @@ def graph_specs(
                 'camera_id': 'overhead',
                 'camera_type': 'overhead',
                 'mount.static_pose': over,
+                **truth,
+                **info('overhead'),
                 'frame_rate': float(cfg['overhead']['rate']),
                 'seed': exp.seed * 100 + 99,
             },
@@ -150,6 +182,7 @@ def graph_specs(
             parameters={
                 **sim,
                 'motion_class': exp.system,
+                **believed,
                 'k': int(cfg['k']),
                 'rho': float(dc['rho']),
                 'capture_lead': float(dc['capture_lead']),
@@ -159,7 +192,7 @@ def graph_specs(
         NodeSpec(
             'frames',
             'activesurv_bringup.frames_node',
-            parameters={**sim, 'motion_class': exp.system, 'overhead_pose': over},
+            parameters={**sim, 'motion_class': exp.system, 'overhead_pose': over, **believed},
         ),
         NodeSpec(
             'fusion',
@@ -202,6 +235,8 @@ def graph_specs(
             'preview_rate': float(preview_rate),
             'seed': exp.seed * 100 + i,
             **mount_parameters(s),
+            **truth,
+            **info(cid),
         }
         imager_params: dict[str, Any] = {
             **sim,
@@ -241,6 +276,7 @@ def graph_specs(
         'publish_rate': 20.0,
         'publish_clock': True,
         'real_time_factor': float(rtf),
+        **truth,
         # The recorder and every simulated camera must hear the object from the start.
         'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
     }

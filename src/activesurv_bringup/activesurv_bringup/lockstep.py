@@ -26,8 +26,7 @@ from numpy.typing import NDArray
 from activesurv_bringup.evaluation import DemandRecord, PredictionLog, observed_visibility
 from activesurv_bringup.experiment import Experiment
 from activesurv_bringup.faults import Fault, FaultKind, imager_injection
-from activesurv_common.camera_model import overhead_camera
-from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.mount import CameraMount
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher, DispatcherConfig
@@ -52,8 +51,9 @@ Progress = Callable[[int, int, float], None]
 @dataclass
 class _Camera:
     axes: list[AxisSimulator]
-    renderer: Renderer
-    imager: CaptureCore[NDArray[np.uint8]]
+    renderer: Renderer  # the true optics
+    mount: CameraMount  # the true mount (with the rig's stage errors)
+    imager: CaptureCore[NDArray[np.uint8]]  # what the system believes
     first_frame: NDArray[np.uint8] | None = None
 
     def joints(self, t: float) -> Array:
@@ -87,10 +87,9 @@ def run_lockstep(
     dead = {c for c, f in by_cam.items() if f.kind is FaultKind.DEAD}
 
     # Prediction
-    pose = [float(v) for v in cfg['overhead']['pose']]
-    T_over = Transform.from_rt(matrix_from_quaternion(pose[3:]), pose[:3])
-    over_cam = overhead_camera()
-    over_renderer = Renderer(over_cam)
+    true_over, T_over = exp.overhead(truth=True)
+    over_cam, T_over_believed = exp.overhead(truth=False)
+    over_renderer = Renderer(true_over)
     pc = cfg['predictor']
     tracker = Tracker(
         make_predictor(
@@ -125,7 +124,8 @@ def run_lockstep(
                 AxisSimulator(lim, float(q), 0.0)
                 for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
             ],
-            Renderer(s.camera),
+            Renderer(exp.true_camera(s.camera_id)[0]),
+            exp.true_camera(s.camera_id)[1],
             CaptureCore(
                 ImagerConfig(
                     s.camera_id,
@@ -151,7 +151,7 @@ def run_lockstep(
         t = step * dt
         state = _state_vector(exp, t)
         img = over_renderer.render(T_over, object_scene(state, geometry), noise, rng)
-        fix = overhead_fix(img, over_cam, T_over, om.top_height, exp.setup.marker_radius)
+        fix = overhead_fix(img, over_cam, T_over_believed, om.top_height, exp.setup.marker_radius)
         if fix.xy is not None:
             tracker.update(t, fix.xy)
         tracker.check_timeout(t)
@@ -224,7 +224,7 @@ def _capture(
             continue  # a dead camera: no answer
         cam = cameras[cid]
         q = cam.joints(tj)
-        T = exp.setup.sensor(cid).mount.pose_from_joints(q)
+        T = cam.mount.pose_from_joints(q)  # where the camera really is
         img = cam.renderer.render(T, scene, noise, rng)
         fault = faults.get(cid)
         if fault is not None and fault.kind is FaultKind.FROZEN:

@@ -106,6 +106,8 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             'mode': info.get('mode', 'graph'),
             'predictor': info.get('predictor', 'ca'),
             'faults': info.get('faults', []),
+            # The simulated hardware and what the system was told (None: round-1 runs).
+            **{k: info.get(k) for k in ('rig', 'rig_source', 'rig_seed', 'calibration')},
         },
     )
 

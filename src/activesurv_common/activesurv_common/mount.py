@@ -18,8 +18,9 @@ where R0 maps the optical axes (x right, y down, z forward) to (-y_P, -z_P, +x_P
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -137,6 +138,15 @@ class CameraMount:
             linear = float(table[self.linear_joint])
         return self.camera_pose(linear, float(table[self.rotary_joint]))
 
+    @property
+    def rotation_centre_offset(self) -> Array:
+        """The optical centre relative to the rotary axis, in the optical frame at zero rotation.
+
+        The same vector as :attr:`offset`, in the camera's axes (the rig and calibration files
+        use this form, as a lab measures it).
+        """
+        return np.asarray(self.R_platform_camera.T @ self.offset, dtype=np.float64)
+
     def with_offset(self, offset: ArrayLike) -> CameraMount:
         return CameraMount(
             self.camera_id,
@@ -148,6 +158,53 @@ class CameraMount:
             self.linear_joint,
             self.rotary_joint,
         )
+
+
+def mount_to_dict(mount: CameraMount) -> dict[str, Any]:
+    """The ``mount`` mapping of rig and calibration files (SI units, world frame).
+
+    ``base`` is the point of the rotary axis at the optical centre's height (at linear position
+    0), ``yaw_offset`` the optical axis's world yaw at rotary position 0, ``pitch`` its downward
+    tilt, ``rotation_centre_offset`` the optical centre relative to the axis in the optical frame
+    at zero rotation, ``linear_axis`` the linear stage's world direction (null without one).
+    """
+    return {
+        'base': [float(v) for v in mount.base],
+        'yaw_offset': float(mount.yaw_offset),
+        'pitch': float(mount.pitch),
+        'rotation_centre_offset': [float(v) for v in mount.rotation_centre_offset],
+        'linear_axis': None
+        if mount.linear_axis is None
+        else [float(v) for v in mount.linear_axis],
+    }
+
+
+def mount_from_dict(camera_id: str, data: Mapping[str, Any]) -> CameraMount:
+    """Read a ``mount`` mapping (:func:`mount_to_dict`); ``offset`` (platform frame) is accepted
+    in place of ``rotation_centre_offset``.
+
+    Raises:
+        CalibrationError: naming the missing or malformed key.
+    """
+    try:
+        pitch = float(data.get('pitch', 0.0))
+        axis = data.get('linear_axis')
+        linear = None if axis is None or not any(axis) else np.array(axis, dtype=np.float64)
+        if 'rotation_centre_offset' in data:
+            rco = as_vector3(data['rotation_centre_offset'], f'{camera_id} rotation_centre_offset')
+            offset = rot_y(pitch) @ R0 @ rco
+        else:
+            offset = np.array(data.get('offset', [0.0, 0.0, 0.0]), dtype=np.float64)
+        return CameraMount(
+            camera_id,
+            np.array(data['base'], dtype=np.float64),
+            float(data.get('yaw_offset', 0.0)),
+            pitch,
+            offset,
+            linear,
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CalibrationError(f'{camera_id}: malformed mount {dict(data)!r}: {exc!r}') from exc
 
 
 def solve_rotation_centre(

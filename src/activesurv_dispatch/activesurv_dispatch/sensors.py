@@ -9,6 +9,7 @@ Joint order per camera: linear first (if any), then rotary; linear positions in 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,8 @@ import yaml
 from numpy.typing import NDArray
 
 from activesurv_common.camera_model import CameraModel, dynamic_camera
-from activesurv_common.mount import CameraMount
+from activesurv_common.errors import CalibrationError
+from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_stages.config import MotionClass, motion_class
 from activesurv_stages.kinematics import AxisLimits
@@ -67,13 +69,8 @@ def _sensor(entry: dict[str, Any], cls: MotionClass) -> Sensor:
         mount_cfg = entry['mount']
         linear = entry.get('linear')
         rotary = entry['rotary']
-        mount = CameraMount(
-            cid,
-            np.array(mount_cfg['base'], dtype=float),
-            float(mount_cfg.get('yaw_offset', 0.0)),
-            float(mount_cfg.get('pitch', 0.0)),
-            np.array(mount_cfg.get('offset', [0, 0, 0]), dtype=float),
-            np.array(linear['axis'], dtype=float) if linear else None,
+        mount = mount_from_dict(
+            cid, {**mount_cfg, 'linear_axis': linear['axis'] if linear else None}
         )
         limits = []
         if linear:
@@ -86,7 +83,13 @@ def _sensor(entry: dict[str, Any], cls: MotionClass) -> Sensor:
     except (KeyError, TypeError, ValueError) as exc:
         raise DispatchConfigError(f'camera entry {entry.get("id", "?")}: {exc!r}') from exc
     intr = entry.get('intrinsics')
-    camera = CameraModel.load(intr) if intr else dynamic_camera(cid)
+    try:
+        if isinstance(intr, dict):  # inline, camera_calibration layout
+            camera = CameraModel.from_dict({'camera_name': cid, **intr})
+        else:
+            camera = CameraModel.load(intr) if intr else dynamic_camera(cid)
+    except CalibrationError as exc:
+        raise DispatchConfigError(f'camera entry {cid}: {exc}') from exc
     return Sensor(cid, mount, camera, tuple(limits), cls.moves)
 
 
@@ -107,6 +110,53 @@ class Setup:
 
     def with_initial(self, initial: dict[str, Array]) -> Setup:
         return replace(self, initial={k: np.asarray(v, dtype=float) for k, v in initial.items()})
+
+    def calibrated(
+        self, mounts: Mapping[str, CameraMount], cameras: Mapping[str, CameraModel]
+    ) -> Setup:
+        """The same stages with the mounts and intrinsics of a calibration.
+
+        Raises:
+            DispatchConfigError: if the calibration lacks a camera of the set-up.
+        """
+        missing = [s.camera_id for s in self.sensors if s.camera_id not in mounts]
+        missing += [s.camera_id for s in self.sensors if s.camera_id not in cameras]
+        if missing:
+            raise DispatchConfigError(f'the calibration has no {sorted(set(missing))}')
+        sensors = []
+        for s in self.sensors:
+            m = mounts[s.camera_id]
+            if (m.linear_axis is None) != (s.mount.linear_axis is None):
+                raise DispatchConfigError(
+                    f'{s.camera_id}: the calibration and the set-up disagree on a linear stage'
+                )
+            mount = replace(
+                m, linear_joint=s.mount.linear_joint, rotary_joint=s.mount.rotary_joint
+            )
+            sensors.append(replace(s, mount=mount, camera=cameras[s.camera_id]))
+        return replace(self, sensors=tuple(sensors))
+
+
+def setup_to_dict(setup: Setup) -> dict[str, Any]:
+    """A set-up as :func:`setup_from_dict` reads it (mounts and intrinsics inline)."""
+    cameras = []
+    for s in setup.sensors:
+        mount = mount_to_dict(s.mount)
+        axis = mount.pop('linear_axis')
+        entry: dict[str, Any] = {'id': s.camera_id, 'mount': mount}
+        rotary = s.limits[-1]
+        if s.has_linear:
+            lin = s.limits[0]
+            entry['linear'] = {
+                'axis': axis,
+                'min': float(lin.min_position),
+                'max': float(lin.max_position),
+            }
+        entry['rotary'] = {'min': float(rotary.min_position), 'max': float(rotary.max_position)}
+        entry['initial'] = [float(v) for v in setup.initial[s.camera_id]]
+        entry['intrinsics'] = s.camera.to_dict()
+        cameras.append(entry)
+    return {'marker_radius': float(setup.marker_radius), 'cameras': cameras}
 
 
 def setup_from_dict(data: dict[str, Any], motion: str = 'fast') -> Setup:

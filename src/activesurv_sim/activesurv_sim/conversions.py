@@ -8,10 +8,12 @@ from typing import Any
 from builtin_interfaces.msg import Time
 
 from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead_camera
+from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.render import SensorNoise
+from activesurv_sim.rig import load_rig
 from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
 from activesurv_sim.xytable import ObjectState
 
@@ -30,9 +32,20 @@ def object_state_msg(state: ObjectState, stamp: Time, frame_id: str) -> ObjectSt
 
 
 def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> SimulatedCamera:
-    """The simulated camera of a ``sim_camera`` node's parameters ``p`` on ``mount``."""
+    """The simulated camera of a ``sim_camera`` node's parameters ``p`` on ``mount``.
+
+    With ``rig_file`` the rig's truth replaces ``mount`` and the optics: its intrinsics, its
+    mount with the stages' position errors (or the overhead camera's pose).
+    """
     camera_id = str(p['camera_id'])
-    if p['intrinsics_file']:
+    if p.get('rig_file'):
+        rig = load_rig(str(p['rig_file']))
+        if camera_id == 'overhead':
+            model, mount = rig.overhead, rig.overhead_pose
+        else:
+            rc = rig.camera(camera_id)
+            model, mount = rc.camera, rc.true_mount()
+    elif p['intrinsics_file']:
         model = CameraModel.load(str(p['intrinsics_file']))
     elif p['camera_type'] == 'overhead':
         model = overhead_camera(camera_id)
@@ -54,3 +67,21 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
         ),
         int(p['seed']),
     )
+
+
+def published_model(p: Mapping[str, Any], sim: SimulatedCamera) -> CameraModel:
+    """What the camera's driver says about its optics on ``camera_info``: the calibration
+    (``camera_info_file``) when given, else the true optics.
+
+    Raises:
+        CalibrationError: for an unreadable file or one of another image size.
+    """
+    if not p.get('camera_info_file'):
+        return sim.camera
+    model = CameraModel.load(str(p['camera_info_file']))
+    if (model.width, model.height) != (sim.camera.width, sim.camera.height):
+        raise CalibrationError(
+            f'{p["camera_info_file"]}: {model.width}x{model.height} calibration for a '
+            f'{sim.camera.width}x{sim.camera.height} camera'
+        )
+    return model

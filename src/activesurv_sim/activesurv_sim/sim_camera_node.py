@@ -38,7 +38,7 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
-from activesurv_sim.conversions import simulated_camera
+from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS
 
@@ -57,6 +57,7 @@ class SimCameraNode(Node):
             mount_from_parameters(self.camera_id, p),
         )
         self.sim.warm_up()
+        self.info_model = published_model({q.name: g(q.name).value for q in PARAMS}, self.sim)
         self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
         self._image_pub = self.create_publisher(
             Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
@@ -154,7 +155,7 @@ class SimCameraNode(Node):
             self._preview_pub.publish(gray_to_image(gray, self.frame_id, stamp))
             return
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
-        self._info_pub.publish(camera_info_from_model(self.sim.camera, self.frame_id, stamp))
+        self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
         self.frames_published += 1
         self.frames_ahead += int(ahead)
 
@@ -178,7 +179,7 @@ class SimCameraNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node('sim_camera', SimCameraNode, args, errors=(SimError,))
+    return run_node('sim_camera', SimCameraNode, args, errors=(SimError, CommonError))
 
 
 if __name__ == '__main__':

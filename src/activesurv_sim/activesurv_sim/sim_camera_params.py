@@ -13,6 +13,16 @@ PARAMS = (
         choices=('dynamic', 'overhead'),
     ),
     Param('intrinsics_file', '', 'camera YAML (camera_calibration layout); overrides the type'),
+    Param(
+        'rig_file',
+        '',
+        "rig YAML: the camera's true optics, mount and stage errors (override the above)",
+    ),
+    Param(
+        'camera_info_file',
+        '',
+        'camera_info to publish (the calibration, as a driver does); empty: the true optics',
+    ),
     Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
     Param(
         'preview_rate',

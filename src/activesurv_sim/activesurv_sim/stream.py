@@ -272,4 +272,9 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
     path = named_path(
         str(p['path_type']), list(p['path_points']), speed, accel, str(p['csv_file'])
     )
-    return XYTable(path, float(p['start_time']), model)
+    error = None
+    if p.get('rig_file'):
+        from activesurv_sim.rig import load_rig
+
+        error = load_rig(str(p['rig_file'])).table_offset
+    return XYTable(path, float(p['start_time']), model, error)

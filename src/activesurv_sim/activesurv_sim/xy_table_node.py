@@ -38,6 +38,7 @@ from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.errors import SimError
 from activesurv_sim.stream import PATH_KINDS, table_from_parameters
 from activesurv_sim.xytable import XYTable
 from activesurv_stages.errors import StageError
@@ -50,6 +51,7 @@ PARAMS = (
         'line: x0, y0, x1, y1; parabola: start, apex, end (m)',
     ),
     Param('csv_file', '', 't,x,y CSV for path_type csv'),
+    Param('rig_file', '', "rig YAML: the table's true position errors; empty: exact"),
     Param('speed', 0.02, 'path speed (m/s)', above=0.0),
     Param('acceleration', 0.02, 'path acceleration (m/s^2)', above=0.0),
     Param('start_time', 1.0, 's before the object starts', minimum=0.0),
@@ -181,7 +183,7 @@ class XYTableNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node('xy_table', XYTableNode, args, errors=(StageError,))
+    return run_node('xy_table', XYTableNode, args, errors=(StageError, SimError))
 
 
 if __name__ == '__main__':

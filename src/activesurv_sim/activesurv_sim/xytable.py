@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -216,10 +216,17 @@ class XYTable:
     """The object on the table: at the path's first point until ``start_time``, then along it."""
 
     def __init__(
-        self, path: TimedPath, start_time: float = 1.0, model: ObjectModel | None = None
+        self,
+        path: TimedPath,
+        start_time: float = 1.0,
+        model: ObjectModel | None = None,
+        position_error: Callable[[float, float], Array] | None = None,
     ) -> None:
+        """``position_error(x, y)``: where the table really is minus where it is commanded
+        (the rig's error map, :meth:`activesurv_sim.rig.Rig.table_offset`); None: exact."""
         if not math.isfinite(start_time):
             raise ConfigError('start_time must be finite')
+        self.position_error = position_error
         self.path = path
         self.start_time = start_time
         self.model = model or ObjectModel()
@@ -233,6 +240,8 @@ class XYTable:
     def state(self, t: float) -> ObjectState:
         tau = t - self.start_time
         xy = self.path.position(tau)
+        if self.position_error is not None:
+            xy = xy + self.position_error(float(xy[0]), float(xy[1]))
         v = self.path.velocity(tau)
         return self.model.at(xy, v, bool(0.0 <= tau <= self.path.duration))
 

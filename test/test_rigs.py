@@ -34,7 +34,8 @@ def test_rig_commands_write_nominal_and_perturbed_rigs(tmp_path: Path) -> None:
     assert b['rig']['seed'] == 7
     # a rig file is never overwritten
     again = subprocess.run(cmd, capture_output=True, text=True)
-    assert again.returncode == 1 and 'exists' in again.stderr
+    assert again.returncode == 1
+    assert 'exists' in again.stderr
     assert yaml.safe_load(per.read_text()) == b
     bad = tmp_path / 'bad.yaml'
     bad.write_text('cameras: [1, 2]\n')
@@ -43,7 +44,8 @@ def test_rig_commands_write_nominal_and_perturbed_rigs(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
     )  # fmt: skip
-    assert out.returncode == 1 and 'cameras' in out.stderr
+    assert out.returncode == 1
+    assert 'cameras' in out.stderr
 
 
 def test_only_the_simulator_reads_the_rig(tmp_path: Path) -> None:

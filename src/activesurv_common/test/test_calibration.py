@@ -31,13 +31,16 @@ def test_a_calibration_round_trips_through_its_directory(tmp_path: Path) -> None
     cal = _calibration()
     written = cal.save(tmp_path / 'cal')
     names = sorted(p.name for p in written)
-    assert 'cam1.yaml' in names and 'cam1_mount.yaml' in names and 'overhead_pose.yaml' in names
+    assert 'cam1.yaml' in names
+    assert 'cam1_mount.yaml' in names
+    assert 'overhead_pose.yaml' in names
     mount_file = yaml.safe_load((tmp_path / 'cal' / 'cam2_mount.yaml').read_text())
     assert set(mount_file['mount']) >= {'base', 'rotation_centre_offset', 'yaw_offset', 'pitch'}
     back = load_calibration(tmp_path / 'cal')
     for cid in ('cam1', 'cam2'):
         a, b = cal.mounts[cid], back.mounts[cid]
-        assert np.allclose(a.base, b.base) and np.allclose(a.offset, b.offset)
+        assert np.allclose(a.base, b.base)
+        assert np.allclose(a.offset, b.offset)
         assert a.yaw_offset == pytest.approx(b.yaw_offset)
         assert (a.linear_axis is None) == (b.linear_axis is None)
         assert np.allclose(cal.cameras[cid].K, back.cameras[cid].K)

@@ -54,7 +54,8 @@ def test_nominal_rig_is_the_paper_hardware() -> None:
 def test_perturbed_rigs_stay_within_the_stated_bounds(seed: int) -> None:
     nom = nominal_rig(MOUNTS, OVERHEAD)
     rig = perturb_rig(nom, seed)
-    assert rig.seed == seed and rig.name == f'perturbed-{seed}'
+    assert rig.seed == seed
+    assert rig.name == f'perturbed-{seed}'
     for cid, rc in rig.cameras.items():
         n = nom.camera(cid)
         assert abs(rc.camera.fx / n.camera.fx - 1) <= 0.02
@@ -64,7 +65,8 @@ def test_perturbed_rigs_stay_within_the_stated_bounds(seed: int) -> None:
         assert abs(rc.mount.yaw_offset - n.mount.yaw_offset) <= math.radians(1.0)
         assert abs(rc.mount.pitch - n.mount.pitch) <= math.radians(1.0)
         off = rc.mount.offset
-        assert 5e-3 <= np.hypot(off[0], off[1]) <= 30e-3 and off[2] == 0.0
+        assert 5e-3 <= np.hypot(off[0], off[1]) <= 30e-3
+        assert off[2] == 0.0
     # the same seed draws the same rig; another seed another one
     assert rig_to_dict(perturb_rig(nom, seed)) == rig_to_dict(rig)
     assert rig_to_dict(perturb_rig(nom, seed + 100)) != rig_to_dict(rig)
@@ -79,7 +81,8 @@ def test_a_rig_file_round_trips_with_the_contract_keys(tmp_path: Path) -> None:
     for key in ('image_width', 'image_height', 'camera_matrix', 'distortion_coefficients'):
         assert key in cam['camera_info']
     assert cam['camera_info']['distortion_model'] == 'plumb_bob'
-    assert len(cam['mount']['base']) == 3 and len(cam['mount']['rotation_centre_offset']) == 3
+    assert len(cam['mount']['base']) == 3
+    assert len(cam['mount']['rotation_centre_offset']) == 3
     back = load_rig(path)
     assert _flat(rig_to_dict(back)) == pytest.approx(_flat(rig_to_dict(rig)), abs=1e-15)
     # the rotation-centre offset is the platform offset in the optical frame at zero rotation

@@ -39,11 +39,8 @@ def test_rig_commands_write_nominal_and_perturbed_rigs(tmp_path: Path) -> None:
     assert yaml.safe_load(per.read_text()) == b
     bad = tmp_path / 'bad.yaml'
     bad.write_text('cameras: [1, 2]\n')
-    out = subprocess.run(
-        [ACTIVESURV, 'rig', 'perturb', '--in', str(bad), '--seed', '1', '--out', str(tmp_path / 'x')],
-        capture_output=True,
-        text=True,
-    )  # fmt: skip
+    cmd = [ACTIVESURV, 'rig', 'perturb', '--in', str(bad), '--seed', '1', '--out', str(per) + '2']
+    out = subprocess.run(cmd, capture_output=True, text=True)
     assert out.returncode == 1
     assert 'cameras' in out.stderr
 

@@ -51,11 +51,11 @@ def test_missing_or_malformed_calibrations_are_refused(tmp_path: Path) -> None:
     with pytest.raises(CalibrationError, match='does not exist'):
         load_calibration(tmp_path / 'none')
     (tmp_path / 'empty').mkdir()
-    with pytest.raises(CalibrationError, match='_mount.yaml'):
+    with pytest.raises(CalibrationError, match=r'_mount\.yaml'):
         load_calibration(tmp_path / 'empty')
     _calibration().save(tmp_path / 'cal')
     (tmp_path / 'cal' / 'cam2.yaml').unlink()
-    with pytest.raises(CalibrationError, match='cam2.yaml'):
+    with pytest.raises(CalibrationError, match=r'cam2\.yaml'):
         load_calibration(tmp_path / 'cal')
     with pytest.raises(CalibrationError, match='7 finite'):
         pose_from_list([0.0] * 6)

@@ -29,6 +29,7 @@ MOUNTS = {
 }
 BASE = {'mount': {'base': [0.0, -0.5, 0.05]}}
 OVERHEAD = [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0]
+OVER = {'pose': OVERHEAD}
 
 
 def _flat(data: object) -> list[float]:
@@ -111,11 +112,11 @@ def test_a_value_given_in_a_rig_file_is_the_truth_and_the_rest_defaults() -> Non
     ('data', 'match'),
     [
         ({}, 'cameras'),
-        ({'cameras': {'cam1': {'mount': {'base': [0, 0, 0]}}}}, 'overhead.pose'),
-        ({'cameras': {'cam1': {'mount': {'base': [0, 0]}}}, 'overhead': {'pose': OVERHEAD}}, 'base'),
-        ({'cameras': {'c': BASE}, 'overhead': {'pose': [0, 0, float('nan'), 0, 0, 0, 1]}}, 'pose'),
-        ({'cameras': {'c': {**BASE, 'stage_accuracy': {'linear': -1}}}, 'overhead': {'pose': OVERHEAD}}, 'accuracy'),
-        ({'cameras': {'c': {**BASE, 'camera_info': {'image_width': 640}}}, 'overhead': {'pose': OVERHEAD}}, 'calibration'),
+        ({'cameras': {'cam1': BASE}}, 'overhead.pose'),
+        ({'cameras': {'c': {'mount': {'base': [0, 0]}}}, 'overhead': OVER}, 'base'),
+        ({'cameras': {'c': BASE}, 'overhead': {'pose': [0, 0, math.nan, 0, 0, 0, 1]}}, 'pose'),
+        ({'cameras': {'c': {**BASE, 'stage_accuracy': {'rotary': -1}}}, 'overhead': OVER}, 'acc'),
+        ({'cameras': {'c': {**BASE, 'camera_info': {'image_width': 6}}}, 'overhead': OVER}, 'cal'),
     ],
 )  # fmt: skip
 def test_a_bad_rig_is_refused_with_a_reason(data: object, match: str) -> None:

@@ -1,0 +1,306 @@
+"""Commissioning of a dynamic camera from views of a checkerboard the xy table carries.
+
+The table puts the board at known world poses (its own positions plus the board's fixture on
+the carriage); the camera's stages are driven through *stations* (joint positions) and at each
+station the camera images the board at several table positions, near and far. All corners seen
+at one station are one non-planar view in world coordinates, so:
+
+1. **Intrinsics and per-station extrinsics** come from ``cv2.calibrateCamera`` over all
+   stations (a 3-D target; the nominal intrinsics start it). Only ``k1`` is estimated: on a
+   7-degree lens ``k2``/``k3`` trade against the focal length (see
+   :func:`activesurv_imaging.calibration.calibrate_intrinsics`); tangential terms are zero.
+2. **The mount** (base, yaw offset, pitch, the optical centre's offset from the rotary axis)
+   is the least-squares fit of the stage kinematics (:class:`CameraMount`) to every station's
+   extrinsics and reported joint positions.
+3. **The rotation centre by eq. C1** (the paper's Appendix C), as a check: the board's position
+   in the camera frame before and after turning the rotary stage, with the board fixed.
+
+A narrow lens cannot tell its principal point from a small turn of the camera (they move the
+image alike to within (x/z)^2 ~ 0.4 %); the mount fit absorbs what intrinsics leave, and the
+pair predicts rays in the world as well as the truth does (README, "Commissioning").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform, rot_y
+from activesurv_common.mount import R0, CameraMount, solve_rotation_centre
+from activesurv_imaging.errors import CalibrationError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class BoardSighting:
+    """The board's corners (N, 2 px) as seen with the board at ``T_world_board``."""
+
+    T_world_board: Transform
+    corners: Array
+
+
+@dataclass(frozen=True)
+class Station:
+    """A camera at one set of stage positions, and what it saw of the board there."""
+
+    joints: Array
+    sightings: tuple[BoardSighting, ...]
+
+
+@dataclass(frozen=True)
+class CameraCommissioning:
+    """The result for one camera.
+
+    Attributes:
+        camera: calibrated intrinsics.
+        mount: fitted mount.
+        reprojection_rms_px: RMS corner reprojection error of the intrinsics fit.
+        mount_rms_px: RMS reprojection error of every corner through the fitted mount.
+        stations: stations used.
+        c1_rotation_centre_offset: the optical centre's offset from the axis by eq. C1 (optical
+            frame at zero rotation), or None without a rotation pair.
+    """
+
+    camera: CameraModel
+    mount: CameraMount
+    reprojection_rms_px: float
+    mount_rms_px: float
+    stations: int
+    c1_rotation_centre_offset: Array | None
+
+
+def _world_points(station: Station, board: Array) -> tuple[Array, Array]:
+    """All corners a station saw, in world coordinates (M, 3), and their pixels (M, 2)."""
+    obj = np.vstack([board @ s.T_world_board.R.T + s.T_world_board.t for s in station.sightings])
+    img = np.vstack([s.corners for s in station.sightings])
+    return obj, img
+
+
+def order_like(corners: Array, expected: Array) -> Array:
+    """``corners`` in the order of ``expected`` (the board projected with the nominal camera):
+    a board seen obliquely can fool the dark-square test of
+    :func:`activesurv_imaging.calibration.find_corners` into the reverse order."""
+    if np.dot(corners[-1] - corners[0], expected[-1] - expected[0]) < 0.0:
+        return np.asarray(corners[::-1], dtype=np.float64)
+    return corners
+
+
+def station_pose(station: Station, camera: CameraModel, board: Array) -> Transform | None:
+    """``T_world_camera`` at a station from its nearest board sighting (planar PnP)."""
+    best: tuple[float, Transform] | None = None
+    for s in station.sightings:
+        ok, rvec, tvec = cv2.solvePnP(
+            board, s.corners, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE
+        )
+        if not ok:
+            continue
+        R, _ = cv2.Rodrigues(rvec)
+        t = np.asarray(tvec, dtype=np.float64).ravel()
+        T_cb = Transform(np.asarray(R, dtype=np.float64), t)
+        T = s.T_world_board.compose(T_cb.inverse())
+        if best is None or t[2] < best[0]:
+            best = (float(t[2]), T)
+    return None if best is None else best[1]
+
+
+def _mount(nominal: CameraMount, x: Array) -> CameraMount:
+    return CameraMount(
+        nominal.camera_id,
+        x[0:3],
+        float(x[3]),
+        float(x[4]),
+        np.array([x[5], x[6], 0.0]),
+        nominal.linear_axis,
+        nominal.linear_joint,
+        nominal.rotary_joint,
+    )
+
+
+def _mount_vector(m: CameraMount) -> Array:
+    return np.asarray(np.r_[m.base, m.yaw_offset, m.pitch, m.offset[:2]], dtype=np.float64)
+
+
+def mount_from_poses(
+    nominal: CameraMount, joints: Sequence[Array], poses: Sequence[Transform]
+) -> CameraMount:
+    """The mount whose kinematics best explain camera poses measured at joint positions.
+
+    Raises:
+        CalibrationError: with fewer than 2 poses or no convergence.
+    """
+    from scipy.optimize import least_squares
+
+    if len(poses) < 2:
+        raise CalibrationError(f'{len(poses)} station poses; need >= 2 to fit a mount')
+
+    def residuals(x: Array) -> Array:
+        m = _mount(nominal, x)
+        out = []
+        for q, T in zip(joints, poses, strict=True):
+            P = m.pose_from_joints(q)
+            out.append(P.t - T.t)
+            out.append(0.5 * (P.R - T.R).ravel())  # ~ rad at a 0.5 m lever
+        return np.concatenate(out)
+
+    fit = least_squares(residuals, _mount_vector(nominal), method='lm')
+    if not fit.success:
+        raise CalibrationError(f'the mount fit did not converge: {fit.message}')
+    return _mount(nominal, fit.x)
+
+
+def _corners(stations: Sequence[Station], board: Array) -> list[tuple[Array, Array, Array]]:
+    out = []
+    for s in stations:
+        if s.sightings:
+            obj, img = _world_points(s, board)
+            out.append((np.asarray(s.joints, dtype=np.float64), obj, img))
+    return out
+
+
+def refine(
+    camera: CameraModel,
+    mount: CameraMount,
+    stations: Sequence[Station],
+    board: Array,
+) -> tuple[CameraModel, CameraMount, float]:
+    """Intrinsics (fx, fy, cx, cy, k1) and mount together, from every corner of every station
+    through the stage kinematics (a bundle adjustment with the board's poses known).
+
+    Returns:
+        (intrinsics, mount, RMS reprojection error in px).
+
+    Raises:
+        CalibrationError: with fewer than 3 stations or no convergence.
+    """
+    from scipy.optimize import least_squares
+
+    data = _corners(stations, board)
+    if len(data) < 3:
+        raise CalibrationError(f'{len(data)} stations saw the board; need >= 3')
+
+    def model_of(x: Array) -> CameraModel:
+        K = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
+        dist = np.array([x[4], 0.0, 0.0, 0.0, 0.0])
+        return CameraModel(camera.width, camera.height, K, dist, camera.name)
+
+    def residuals(x: Array) -> Array:
+        cam, m = model_of(x[:5]), _mount(mount, x[5:])
+        out = []
+        for q, obj, img in data:
+            T = m.pose_from_joints(q)
+            pc = (obj - T.t) @ T.R
+            out.append((cam.project(pc) - img).ravel())
+        return np.concatenate(out)
+
+    x0 = np.r_[camera.fx, camera.fy, camera.cx, camera.cy, camera.dist[0], _mount_vector(mount)]
+    scale = np.r_[10.0, 10.0, 1.0, 1.0, 0.01, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]
+    fit = least_squares(
+        residuals, x0, x_scale=scale, method='lm', xtol=1e-10, ftol=1e-10, max_nfev=2000
+    )
+    if not fit.success:
+        raise CalibrationError(f'the refinement did not converge: {fit.message}')
+    rms = float(np.sqrt(np.mean(fit.fun.reshape(-1, 2) ** 2) * 2))
+    return model_of(fit.x[:5]), _mount(mount, fit.x[5:]), rms
+
+
+def commission_camera(
+    nominal_camera: CameraModel,
+    nominal_mount: CameraMount,
+    stations: Sequence[Station],
+    board: Array,
+) -> tuple[CameraModel, CameraMount, float]:
+    """The whole procedure for one camera: station poses by PnP with the nominal optics, a
+    first mount from them, then intrinsics and mount refined over every corner.
+
+    Returns:
+        (intrinsics, mount, RMS reprojection error in px).
+    """
+    poses, joints = [], []
+    for s in stations:
+        T = station_pose(s, nominal_camera, board)
+        if T is not None:
+            poses.append(T)
+            joints.append(np.asarray(s.joints, dtype=np.float64))
+    mount0 = mount_from_poses(nominal_mount, joints, poses)
+    return refine(nominal_camera, mount0, stations, board)
+
+
+def board_centre_in_camera(sighting: BoardSighting, camera: CameraModel, board: Array) -> Array:
+    """The board's centre in the camera's optical frame (m), by PnP with ``camera``."""
+    ok, _, tvec = cv2.solvePnP(
+        board, sighting.corners, camera.K, camera.dist, flags=cv2.SOLVEPNP_ITERATIVE
+    )
+    if not ok:
+        raise CalibrationError('solvePnP failed on a board sighting')
+    return np.asarray(tvec, dtype=np.float64).reshape(3)
+
+
+def c1_offset(
+    pairs: Sequence[tuple[BoardSighting, BoardSighting, float]],
+    camera: CameraModel,
+    board: Array,
+    pitch: float,
+) -> Array:
+    """The optical centre's offset from the rotary axis by eq. C1 (optical frame, zero yaw).
+
+    Args:
+        pairs: (before, after, rotation in rad) with the board fixed in between.
+        camera: calibrated intrinsics.
+        board: board corners in the board frame.
+        pitch: the camera's pitch (from the mount fit), to level its frame.
+
+    Raises:
+        CalibrationError: for no pairs or rotations too small to solve.
+    """
+    if not pairs:
+        raise CalibrationError('eq. C1 needs readings before and after a rotation')
+    before = np.array([board_centre_in_camera(b, camera, board) for b, _, _ in pairs])
+    after = np.array([board_centre_in_camera(a, camera, board) for _, a, _ in pairs])
+    angles = np.array([angle for _, _, angle in pairs])
+    centre = solve_rotation_centre(before, after, angles, pitch)
+    # The rotation centre in the level camera frame; the camera centre's offset from the axis
+    # in the platform frame is its negative, and in the optical frame at zero rotation:
+    offset_platform = -np.array([centre[0], centre[1], 0.0])
+    level = rot_y(pitch) @ R0
+    return np.asarray(level.T @ offset_platform, dtype=np.float64)
+
+
+def pixel_error(
+    truth: CameraModel,
+    truth_mount: CameraMount,
+    model: CameraModel,
+    mount: CameraMount,
+    q: Array,
+    depth: float = 0.5,
+) -> float:
+    """Largest image distance (px) between where the true camera sees world points at
+    ``depth`` and where the calibrated camera (intrinsics and mount) puts them, at joints ``q``:
+    the calibration error that reaches the measurements, whatever the split between them."""
+    T_true = truth_mount.pose_from_joints(q)
+    T_cal = mount.pose_from_joints(q)
+    u, v = np.meshgrid(np.linspace(0, truth.width - 1, 5), np.linspace(0, truth.height - 1, 4))
+    px = np.column_stack([u.ravel(), v.ravel()])
+    world = (truth.rays(px) * depth) @ T_true.R.T + T_true.t
+    pc = (world - T_cal.t) @ T_cal.R
+    return float(np.max(np.linalg.norm(model.project(pc) - px, axis=1)))
+
+
+__all__ = [
+    'BoardSighting',
+    'CameraCommissioning',
+    'Station',
+    'board_centre_in_camera',
+    'c1_offset',
+    'commission_camera',
+    'mount_from_poses',
+    'order_like',
+    'pixel_error',
+    'refine',
+    'station_pose',
+]

@@ -87,6 +87,10 @@ def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
             'faults': [str(f) for f in faults],
         }
     )
+    if exp.rig is not None:  # what the system was told: a replay's imagers are told the same
+        from activesurv_dispatch.sensors import setup_to_dict
+
+        info['setup'] = setup_to_dict(exp.setup)
     return info
 
 

@@ -30,13 +30,17 @@ from activesurv_bringup.bagio import (
 from activesurv_bringup.errors import BagError, NodeDiedError
 from activesurv_bringup.graph import mount_parameters
 from activesurv_bringup.launcher import Launcher, NodeSpec
-from activesurv_dispatch.sensors import load_setup
+from activesurv_dispatch.sensors import load_setup, setup_from_dict
 
 Progress = Callable[[str], None]
 
 
 def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
-    setup = load_setup(motion=str(info['system']))
+    # The mounts the run's imagers were given (its calibration), else the paper set-up.
+    if isinstance(info.get('setup'), dict):
+        setup = setup_from_dict(info['setup'], str(info['system']))
+    else:
+        setup = load_setup(motion=str(info['system']))
     sim = {'use_sim_time': True}
     specs = [
         NodeSpec(

@@ -49,6 +49,9 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ['ROS_HOME'] = str(ros_home)
     os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
     os.environ['ACTIVESURV_TEST_ISOLATED'] = '1'
+    # Runs are told their rig's truth unless a test asks otherwise: commissioning a rig takes
+    # minutes (test_commission.py runs it, and the default, on purpose).
+    os.environ.setdefault('ACTIVESURV_CALIBRATION', 'truth')
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     _owned_home.append(ros_home)
 

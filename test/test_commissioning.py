@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from activesurv_bringup.board_views import BoardFixture, collect_stations, simulated_look
+from activesurv_bringup.board_views import board_corners, collect_stations, simulated_look
 from activesurv_bringup.rigs import nominal
 from activesurv_common.mount import CameraMount
 from activesurv_imaging.commissioning import commission_camera, order_like, pixel_error
 from activesurv_imaging.errors import CalibrationError
+from activesurv_sim.board import BoardFixture
 from activesurv_sim.rig import perturb_rig
 
 
@@ -24,7 +25,7 @@ def test_a_perturbed_camera_is_commissioned_from_nominal_values(seed: int, camer
         simulated_look(rig, camera_id, fixture, seed), n.camera, n.mount, fixture
     )
     assert sum(len(s.sightings) for s in stations) >= 30
-    model, mount, rms = commission_camera(n.camera, n.mount, stations, fixture.corners)
+    model, mount, rms = commission_camera(n.camera, n.mount, stations, board_corners(fixture))
     truth = rig.camera(camera_id)
     assert rms < 0.3
     assert abs(model.fx / truth.camera.fx - 1) < 1e-3  # nominal was up to 2 % off
@@ -49,5 +50,5 @@ def test_a_reversed_corner_order_is_put_right() -> None:
 def test_too_few_stations_are_refused() -> None:
     n = nominal().camera('cam2')
     with pytest.raises(CalibrationError, match='station'):
-        commission_camera(n.camera, n.mount, [], BoardFixture().corners)
+        commission_camera(n.camera, n.mount, [], board_corners(BoardFixture()))
     assert isinstance(n.mount, CameraMount)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,29 +20,16 @@ from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import BoardSighting, Station, order_like
-from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
+from activesurv_sim.board import BoardFixture
+from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.rig import Rig
 
 Array = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
-class BoardFixture:
-    """The board on the table's carriage: its squares, and where its centre sits relative to the
-    carriage position (x, y) (m); it faces -y, towards the cameras, x along world x."""
-
-    squares: tuple[int, int] = (9, 7)
-    square_size: float = 0.004
-    offset: tuple[float, float, float] = (0.0, -0.03, 0.05)
-
-    @property
-    def corners(self) -> Array:
-        return board_points(self.squares, self.square_size)
-
-    def pose(self, x: float, y: float) -> Transform:
-        """``T_world_board`` with the carriage at (x, y): board z away from the cameras (+y)."""
-        R = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-        return Transform(R, np.array([x, y, 0.0]) + np.asarray(self.offset))
+def board_corners(fixture: BoardFixture) -> Array:
+    """The side board's inner corners (N, 3) in its board frame."""
+    return board_points(fixture.squares, fixture.square_size)
 
 
 Look = Callable[[Array, float, float], Array | None]  # (joints, table x, y) -> corners
@@ -77,7 +63,7 @@ def collect_stations(
         camera, mount: the nominal values (the procedure's only knowledge).
         fixture: the board on the carriage.
     """
-    board = fixture.corners
+    board = board_corners(fixture)
     stations = []
     linear = linear_positions if mount.linear_axis is not None else (None,)
     for s in linear:
@@ -131,12 +117,8 @@ def simulated_look(rig: Rig, camera_id: str, fixture: BoardFixture, seed: int = 
     rng = np.random.default_rng(seed)
 
     def look(q: Array, x: float, y: float) -> Array | None:
-        Tb = fixture.pose(x, y)
-        centre = Tb.t + np.r_[rig.table_offset(x, y), 0.0]
-        plate = Plate.checkerboard(
-            centre, Tb.R[:, 2], Tb.R[:, 0], fixture.squares, fixture.square_size
-        )
-        image = renderer.render(true_mount.pose_from_joints(q), Scene((plate,)), noise, rng)
+        scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
+        image = renderer.render(true_mount.pose_from_joints(q), scene, noise, rng)
         return find_corners(image, fixture.squares)
 
     return look

@@ -16,6 +16,7 @@
     activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
     activesurv demo [--out DIR] [--mode {graph,lockstep}] [--rig RIG.yaml]
         [--calibration {CALDIR,nominal,truth}]
+    activesurv commission (--rig RIG.yaml | --live) --out CALDIR [--cameras cam1,cam2]
     activesurv rig nominal --out RIG.yaml
     activesurv rig perturb --in RIG.yaml --seed S --out RIG2.yaml
     activesurv bag reindex BAG
@@ -159,6 +160,20 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     _add_rig(demo)
 
+    com = sub.add_parser(
+        'commission', help='calibrate a rig through the node graph (cameras, mounts, overhead)'
+    )
+    com.add_argument('--rig', type=Path, default=None, help='rig YAML to simulate')
+    com.add_argument('--out', type=Path, required=True, help='calibration directory (new)')
+    com.add_argument(
+        '--live',
+        action='store_true',
+        help='commission the stages, table and cameras running on this ROS domain',
+    )
+    com.add_argument(
+        '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
+    )
+
     rig = sub.add_parser('rig', help='rig files: the simulated hardware (nominal, perturb)')
     from activesurv_bringup.rigs import add_arguments as add_rig_arguments
 
@@ -258,14 +273,14 @@ def experiment(
         raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
     from activesurv_bringup.rigs import choose
 
-    choice = choose(rig, calibration, seed)
-    exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
-    exp.config['predictor']['model'] = predictor
-    new_output_dir(out)
-    started = time.monotonic()
-
     def say(text: str) -> None:
         print(f'  Set {set_name} {system}: {text}', flush=True)
+
+    new_output_dir(out)  # refused before anything is commissioned or run
+    choice = choose(rig, calibration, seed, out.parent, say)
+    exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
+    exp.config['predictor']['model'] = predictor
+    started = time.monotonic()
 
     doc: dict[str, Any]
     if mode == 'lockstep':
@@ -371,6 +386,26 @@ def replay(
     return rows
 
 
+def commission(
+    out: Path, rig: Path | None, live: bool = False, cameras: str | None = None
+) -> dict[str, Any]:
+    """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one."""
+    from activesurv_bringup.commission import run_commission
+    from activesurv_bringup.rigs import resolve_rig
+
+    if (rig is None) == (not live):
+        raise ConfigError('give --rig RIG.yaml (simulation) or --live (the running hardware)')
+    the_rig = resolve_rig(rig, 0)[0] if rig is not None else None
+    chosen = [c.strip() for c in cameras.split(',') if c.strip()] if cameras else None
+
+    def say(text: str) -> None:
+        print(f'  commission: {text}', flush=True)
+
+    doc = run_commission(out, the_rig, chosen, say)
+    say(f'done in {doc["seconds"]:.0f} s -> {out}')
+    return doc
+
+
 def report(path: Path) -> Path:
     """results.json, plots and report.md of recorded runs; returns the report's path."""
     from activesurv_bringup.report import report as make_report
@@ -471,6 +506,8 @@ def main(argv: list[str] | None = None) -> int:
             report(args.path)
         elif args.command == 'demo':
             demo(args.out, args.seed, args.mode, run_options(args), args.rig, args.calibration)
+        elif args.command == 'commission':
+            commission(args.out, args.rig, args.live, args.cameras)
         elif args.command == 'rig':
             from activesurv_bringup.rigs import run as write_rig
 

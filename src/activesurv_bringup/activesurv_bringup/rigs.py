@@ -5,7 +5,9 @@ believes about it.
   the paper's nominal rig perturbed with the run's seed, as no two labs' rigs are alike.
 * ``--calibration {CALDIR,nominal,truth}``: what every other node is told. ``truth`` hands the
   system the rig itself (the round-1 world); ``nominal`` the paper's values; a directory is a
-  commissioning's result (:mod:`activesurv_common.calibration`).
+  commissioning's result (:mod:`activesurv_common.calibration`). Without the option the rig
+  is commissioned first (``activesurv commission``), once per rig, into
+  ``<runs>/calibrations/<rig>-<hash>/`` next to the run directories.
 
 ``activesurv rig nominal --out RIG.yaml`` and ``activesurv rig perturb --in RIG.yaml --seed S
 --out RIG2.yaml`` write rig files.
@@ -14,6 +16,10 @@ believes about it.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +30,15 @@ from activesurv_common.calibration import Calibration, load_calibration
 from activesurv_common.errors import CalibrationError
 from activesurv_common.mount import CameraMount
 from activesurv_dispatch.sensors import load_setup
-from activesurv_sim.rig import Rig, RigError, load_rig, nominal_rig, perturb_rig, save_rig
+from activesurv_sim.rig import (
+    Rig,
+    RigError,
+    load_rig,
+    nominal_rig,
+    perturb_rig,
+    rig_to_dict,
+    save_rig,
+)
 
 CALIBRATIONS = ('nominal', 'truth')
 
@@ -102,10 +116,50 @@ def resolve_calibration(choice: str, rig: Rig) -> Calibration:
     return cal
 
 
-def choose(rig: str | Path | None, calibration: str | None, seed: int) -> RigChoice:
-    """A run's rig and calibration from its command line (see the module docstring)."""
+def default_calibration() -> str | None:
+    """``ACTIVESURV_CALIBRATION`` if set (the test suite sets ``truth``), else None: commission."""
+    return os.environ.get('ACTIVESURV_CALIBRATION') or None
+
+
+def calibration_dir(runs: Path, rig: Rig) -> Path:
+    """Where the commissioning of ``rig`` is cached next to the runs: one per rig content."""
+    digest = hashlib.sha256(yaml.safe_dump(rig_to_dict(rig), sort_keys=True).encode())
+    return runs / 'calibrations' / f'{rig.name}-{digest.hexdigest()[:10]}'
+
+
+def commissioned(runs: Path, rig: Rig, progress: Callable[[str], None] = print) -> Path:
+    """The rig's calibration next to the runs, commissioned first if there is none yet."""
+    from activesurv_bringup.commission import run_commission
+
+    path = calibration_dir(runs, rig)
+    if (path / 'commission.json').is_file():
+        progress(f'calibration of {rig.name}: {path} (commissioned before)')
+        return path
+    if path.exists():  # an interrupted commissioning: keep it, start a new one beside it
+        path = path.with_name(f'{path.name}-{int(time.time())}')
+    progress(f'commissioning {rig.name} into {path} (once per rig)')
+    run_commission(path, rig, progress=progress)
+    return path
+
+
+def choose(
+    rig: str | Path | None,
+    calibration: str | None,
+    seed: int,
+    runs: Path | None = None,
+    progress: Callable[[str], None] = print,
+) -> RigChoice:
+    """A run's rig and calibration from its command line (see the module docstring).
+
+    Without ``calibration`` (and ``ACTIVESURV_CALIBRATION``) the rig is commissioned first,
+    once, into ``runs/calibrations/`` (``runs``: the directory the run directory sits in).
+    """
     the_rig, source = resolve_rig(rig, seed)
-    cal_choice = calibration or 'truth'
+    cal_choice = calibration or default_calibration()
+    if cal_choice is None:
+        if runs is None:
+            raise ConfigError('commissioning needs a directory for its calibration')
+        cal_choice = str(commissioned(runs, the_rig, progress))
     cal = resolve_calibration(cal_choice, the_rig)
     label = cal_choice if cal_choice in CALIBRATIONS else str(Path(cal_choice).resolve())
     return RigChoice(the_rig, source, cal, label)

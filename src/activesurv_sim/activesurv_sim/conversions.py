@@ -5,14 +5,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
 from builtin_interfaces.msg import Time
+from numpy.typing import NDArray
 
 from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead_camera
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
-from activesurv_sim.render import SensorNoise
+from activesurv_sim.board import BoardFixture
+from activesurv_sim.render import Scene, SensorNoise
 from activesurv_sim.rig import load_rig
 from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
 from activesurv_sim.xytable import ObjectState
@@ -31,6 +34,10 @@ def object_state_msg(state: ObjectState, stamp: Time, frame_id: str) -> ObjectSt
     return msg
 
 
+TABLE_ID = 'xy_table'  # the table as a two-axis stage (commissioning): xy_table/stage/...
+TABLE_JOINTS = ('table_x', 'table_y')
+
+
 def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> SimulatedCamera:
     """The simulated camera of a ``sim_camera`` node's parameters ``p`` on ``mount``.
 
@@ -38,8 +45,16 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
     mount with the stages' position errors (or the overhead camera's pose).
     """
     camera_id = str(p['camera_id'])
-    if p.get('rig_file'):
-        rig = load_rig(str(p['rig_file']))
+    rig = load_rig(str(p['rig_file'])) if p.get('rig_file') else None
+    scene_of = None
+    if p.get('payload') == 'board':
+        fixture, offset = BoardFixture(), rig.table_offset if rig is not None else None
+
+        def scene_of(state: NDArray[np.float64]) -> Scene:
+            xy = state[:2] + (offset(float(state[0]), float(state[1])) if offset else 0.0)
+            return fixture.scene(xy)
+
+    if rig is not None:
         if camera_id == 'overhead':
             model, mount = rig.overhead, rig.overhead_pose
         else:
@@ -66,6 +81,7 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
             int(p['supersample']),
         ),
         int(p['seed']),
+        scene_of,
     )
 
 

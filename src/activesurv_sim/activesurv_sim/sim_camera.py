@@ -15,7 +15,7 @@ simulated world's rendering is work a real lab's cameras do in hardware.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,8 +69,12 @@ class SimulatedCamera:
         geometry: ObjectGeometry | None = None,
         noise: SensorNoise | None = None,
         seed: int = 0,
+        scene_of: Callable[[NDArray[np.float64]], Scene] | None = None,
     ) -> None:
+        """``scene_of(state)``: the scene of a state 9-vector (default: the object's markers,
+        :func:`object_scene`; commissioning: the boards on the carriage)."""
         self.camera = camera
+        self.scene_of = scene_of
         self.renderer = Renderer(camera)
         self.mount = mount
         self.geometry = ObjectGeometry() if geometry is None else geometry
@@ -197,7 +201,9 @@ class SimulatedCamera:
             T = self.mount.pose_from_joints(np.asarray(q, dtype=np.float64))
         else:
             T = self.mount
-        return self.renderer.render(T, object_scene(state, self.geometry), self.noise, self.rng)
+        s = np.asarray(state, dtype=np.float64)
+        scene = object_scene(s, self.geometry) if self.scene_of is None else self.scene_of(s)
+        return self.renderer.render(T, scene, self.noise, self.rng)
 
     def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:
         """The frame exposed at ``t`` (rendered now).

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
@@ -38,7 +39,7 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
-from activesurv_sim.conversions import published_model, simulated_camera
+from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS
 
@@ -65,7 +66,11 @@ class SimCameraNode(Node):
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
         )
-        self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
+        if str(g('payload').value) == 'board':  # commissioning: the table's stage carries it
+            table = topics.joint_states(TABLE_ID)
+            self.create_subscription(JointState, table, self._on_table, qos.STATE)
+        else:
+            self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
         if self.sim.joint_names:
             self.create_subscription(
                 JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
@@ -105,6 +110,13 @@ class SimCameraNode(Node):
             self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
         elif self._pending:
             self._on_tick()  # a frame waiting for this state is rendered now, not on a tick
+
+    def _on_table(self, msg: JointState) -> None:
+        xy = joint_vector(msg, TABLE_JOINTS)
+        if xy is not None and self.sim.objects.add(
+            time_to_sec(msg.header.stamp), np.r_[xy, [0.0] * 7]
+        ):
+            self._on_tick()
 
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)

@@ -23,6 +23,12 @@ PARAMS = (
         '',
         'camera_info to publish (the calibration, as a driver does); empty: the true optics',
     ),
+    Param(
+        'payload',
+        'object',
+        "what the table carries: the object's markers, or the commissioning boards",
+        choices=('object', 'board'),
+    ),
     Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
     Param(
         'preview_rate',

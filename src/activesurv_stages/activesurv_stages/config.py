@@ -61,6 +61,9 @@ MOTION_CLASSES: dict[str, MotionClass] = {
     'static': MotionClass('static', 0.0, 0.0, 0.0, 0.0),
     'medium': MotionClass('medium', 0.010, 0.1, 0.04, 0.4),
     'fast': MotionClass('fast', 0.025, 0.2, 0.10, 0.8),
+    # Table I's maxima (linear stages and xy table 0.3 m/s, rotary stages pi/6 rad/s), for
+    # commissioning, where only the time taken matters.
+    'hardware': MotionClass('hardware', 0.3, math.pi / 6.0, 1.2, 2.0 * math.pi / 3.0),
 }
 
 

@@ -122,3 +122,19 @@ def simulated_look(rig: Rig, camera_id: str, fixture: BoardFixture, seed: int = 
         return find_corners(image, fixture.squares)
 
     return look
+
+
+def simulated_overhead_look(
+    rig: Rig, fixture: BoardFixture, seed: int = 0
+) -> Callable[[float, float], Array | None]:
+    """The rig's overhead camera looking at the top board with the carriage at (x, y)."""
+    renderer = Renderer(rig.overhead)
+    noise = SensorNoise()
+    rng = np.random.default_rng(seed)
+
+    def look(x: float, y: float) -> Array | None:
+        scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
+        image = renderer.render(rig.overhead_pose, scene, noise, rng)
+        return find_corners(image, fixture.top_squares)
+
+    return look

@@ -253,20 +253,30 @@ class Commissioner:
 
         return look
 
+    def look_overhead(self, fixture: BoardFixture) -> Callable[[float, float], Array | None]:
+        def look(x: float, y: float) -> Array | None:
+            self.move(TABLE_ID, TABLE_JOINTS, np.array([x, y]))
+            return find_corners(self.capture('overhead', (TABLE_ID,)), fixture.top_squares)
+
+        return look
+
     def close(self) -> None:
         self.node.destroy_node()
 
 
 def commission_dynamic(
-    com: Commissioner,
-    camera_id: str,
-    nominal_camera: CameraModel,
+    look: Look,
+    start: CameraModel,
     nominal_mount: CameraMount,
     fixture: BoardFixture,
 ) -> tuple[CameraModel, CameraMount, dict[str, Any]]:
-    """One dynamic camera: stations, fit, and the eq. C1 check; returns (model, mount, report)."""
-    start = com.camera_model(camera_id, nominal_camera)
-    look = com.look(camera_id, fixture)
+    """One dynamic camera: stations, fit, and the eq. C1 check; returns (model, mount, report).
+
+    Args:
+        look: shows the board at a table position to the camera at stage positions.
+        start: the intrinsics to start from (what the driver says, or nominal).
+        nominal_mount: the mount as designed.
+    """
     stations = collect_stations(look, start, nominal_mount, fixture)
     board = board_corners(fixture)
     model, mount, rms = commission_camera(start, nominal_mount, stations, board)
@@ -307,7 +317,10 @@ def commission_dynamic(
 
 
 def commission_overhead(
-    com: Commissioner, nominal: CameraModel, nominal_pose: Transform, fixture: BoardFixture
+    look: Callable[[float, float], Array | None],
+    nominal: CameraModel,
+    nominal_pose: Transform,
+    fixture: BoardFixture,
 ) -> tuple[CameraModel, Transform, dict[str, Any]]:
     """The overhead camera from the top board over a grid of table positions: one planar
     target at the top markers' height. Looking straight down at one plane, focal length and
@@ -321,8 +334,7 @@ def commission_overhead(
     Tc = nominal_pose.inverse()
     for x in OVERHEAD_GRID[0]:
         for y in OVERHEAD_GRID[1]:
-            com.move(TABLE_ID, TABLE_JOINTS, np.array([x, y]))
-            corners = find_corners(com.capture('overhead', (TABLE_ID,)), fixture.top_squares)
+            corners = look(x, y)
             if corners is None:
                 continue
             T = fixture.top_pose(x, y)
@@ -414,6 +426,82 @@ def check_cameras(setup: Setup, cameras: Sequence[str] | None) -> list[str]:
     return chosen
 
 
+def commission_all(
+    dynamic: Callable[[str], tuple[Look, CameraModel]],
+    overhead_look: Callable[[float, float], Array | None],
+    all_cameras: Sequence[str],
+    chosen: Sequence[str],
+    rig: Rig | None,
+    progress: Progress,
+    name: str,
+) -> tuple[Calibration, dict[str, Any]]:
+    """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
+
+    Args:
+        dynamic: per camera id, how it looks at the board and the intrinsics to start from.
+        overhead_look: the overhead camera looking at the top board at a table position.
+        rig: the simulated truth, to report each estimate's error (None when live).
+    """
+    from activesurv_bringup.rigs import nominal
+
+    nominal_cal = nominal().truth()
+    fixture = BoardFixture()
+    models = dict(nominal_cal.cameras)
+    mounts = dict(nominal_cal.mounts)
+    report: dict[str, Any] = {'rig': None if rig is None else rig.name, 'cameras': {}}
+    for cid in all_cameras:
+        if cid not in chosen:
+            report['cameras'][cid] = {'commissioned': False, 'reprojection_rms_px': None}
+            continue
+        t0 = time.monotonic()
+        look, start = dynamic(cid)
+        model, mount, rep = commission_dynamic(look, start, nominal_cal.mounts[cid], fixture)
+        models[cid], mounts[cid] = model, mount
+        rep['commissioned'] = True
+        rep['seconds'] = round(time.monotonic() - t0, 1)
+        joints = [np.array(q) for q in rep.pop('joints')]
+        if rig is not None:
+            rep['error'] = errors_against(rig, cid, model, mount, joints)
+        report['cameras'][cid] = rep
+        progress(
+            f'{cid}: {rep["sightings"]} board views at {rep["stations"]} stations, '
+            f'reprojection RMS {rep["reprojection_rms_px"]:.3f} px, {rep["seconds"]:.0f} s'
+        )
+    over, pose, rep = commission_overhead(
+        overhead_look, nominal_cal.overhead, nominal_cal.overhead_pose, fixture
+    )
+    if rig is not None:
+        rep['error'] = {
+            'table_mapping_m': plane_mapping_error(
+                rig.overhead, rig.overhead_pose, over, pose, fixture.top_height
+            )
+        }
+    report['overhead'] = rep
+    progress(f'overhead: reprojection RMS {rep["reprojection_rms_px"]:.3f} px')
+    return Calibration(name, models, mounts, over, pose), report
+
+
+def commission_offline(
+    rig: Rig, progress: Progress = lambda _: None
+) -> tuple[Calibration, dict[str, Any]]:
+    """The same procedure on rendered views without the node graph (benchmarks, studies)."""
+    from activesurv_bringup.board_views import simulated_look, simulated_overhead_look
+    from activesurv_bringup.rigs import nominal
+
+    nominal_cal = nominal().truth()
+    fixture = BoardFixture()
+    cameras = sorted(rig.cameras)
+    return commission_all(
+        lambda c: (simulated_look(rig, c, fixture), nominal_cal.cameras[c]),
+        simulated_overhead_look(rig, fixture),
+        cameras,
+        cameras,
+        rig,
+        progress,
+        f'offline commissioning of {rig.name}',
+    )
+
+
 def run_commission(
     out: Path,
     rig: Rig | None,
@@ -473,41 +561,16 @@ def run_commission(
             raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
         progress(f'stages up: {stages}')
         fixture = BoardFixture()
-        models = dict(nominal_cal.cameras)
-        mounts = dict(nominal_cal.mounts)
-        report: dict[str, Any] = {'rig': None if rig is None else rig.name, 'cameras': {}}
-        for cid in [s.camera_id for s in setup.sensors]:
-            if cid not in chosen:
-                report['cameras'][cid] = {'commissioned': False, 'reprojection_rms_px': None}
-                continue
-            t0 = time.monotonic()
-            model, mount, rep = commission_dynamic(
-                com, cid, nominal_cal.cameras[cid], nominal_cal.mounts[cid], fixture
-            )
-            models[cid], mounts[cid] = model, mount
-            rep['commissioned'] = True
-            rep['seconds'] = round(time.monotonic() - t0, 1)
-            joints = [np.array(q) for q in rep.pop('joints')]
-            if rig is not None:
-                rep['error'] = errors_against(rig, cid, model, mount, joints)
-            report['cameras'][cid] = rep
-            progress(
-                f'{cid}: {rep["sightings"]} board views at {rep["stations"]} stations, '
-                f'reprojection RMS {rep["reprojection_rms_px"]:.3f} px, {rep["seconds"]:.0f} s'
-            )
-        over, pose, rep = commission_overhead(
-            com, nominal_cal.overhead, nominal_cal.overhead_pose, fixture
+        cal, report = commission_all(
+            lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
+            com.look_overhead(fixture),
+            [s.camera_id for s in setup.sensors],
+            chosen,
+            rig,
+            progress,
+            str(out),
         )
-        if rig is not None:
-            rep['error'] = {
-                'table_mapping_m': plane_mapping_error(
-                    rig.overhead, rig.overhead_pose, over, pose, fixture.top_height
-                )
-            }
-        report['overhead'] = rep
-        progress(f'overhead: reprojection RMS {rep["reprojection_rms_px"]:.3f} px')
         report['seconds'] = round(time.monotonic() - started, 1)
-        cal = Calibration(str(out), models, mounts, over, pose)
         write_calibration(out, cal, report)
         return report
     finally:

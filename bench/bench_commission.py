@@ -1,0 +1,85 @@
+"""Commissioning benchmarks (``commission.*``): over perturbed rigs (seeds 1..N, N = 10 or
+``ACTIVESURV_COMMISSION_RIGS``), each camera commissioned by the procedure of
+``activesurv commission`` on rendered views (``commission_offline``: the same looks, stations
+and fits, without the node graph), each estimate against the rig; then the fast system's Set A
+in lockstep on each rig told the commissioned calibration, the nominal values, or the truth.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from activesurv_bringup.commission import commission_offline
+from activesurv_bringup.evaluation import summary
+from activesurv_bringup.rigs import RigChoice, nominal, resolve_calibration
+from activesurv_sim.rig import perturb_rig
+
+
+def _median(values: list[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return round(statistics.median(finite), 9) if finite else math.nan
+
+
+def run() -> dict[str, Any]:
+    rigs = int(os.environ.get('ACTIVESURV_COMMISSION_RIGS', '10'))
+    per: dict[str, list[float]] = {}
+    runs: dict[str, dict[str, list[float]]] = {}
+    seconds = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(1, rigs + 1):
+            rig = perturb_rig(nominal(), seed)
+            t0 = time.perf_counter()
+            cal, report = commission_offline(rig)
+            seconds.append(time.perf_counter() - t0)
+            for cam in report['cameras'].values():
+                per.setdefault('reprojection_rms_px', []).append(cam['reprojection_rms_px'])
+                for key, value in cam['error'].items():
+                    per.setdefault(key, []).append(value)
+            per.setdefault('overhead_table_mapping_m', []).append(
+                report['overhead']['error']['table_mapping_m']
+            )
+            choices = {
+                'commissioned': RigChoice(rig, f'seed {seed}', cal, 'commissioned'),
+                'nominal': RigChoice(
+                    rig, f'seed {seed}', resolve_calibration('nominal', rig), 'nominal'
+                ),
+                'truth': RigChoice(rig, f'seed {seed}', rig.truth(), 'truth'),
+            }
+            for name, choice in choices.items():
+                out = Path(tmp) / f'{seed}_{name}'
+                doc = _lockstep(out, seed, choice)
+                s = summary(doc)
+                r = runs.setdefault(name, {'position': [], 'orientation': [], 'estimates': []})
+                r['position'].append(s['median_position_error'])
+                r['orientation'].append(s['median_orientation_error'])
+                r['estimates'].append(s['estimates'])
+            print(f'  commission: rig {seed} of {rigs} ({seconds[-1]:.0f} s)', flush=True)
+    out: dict[str, Any] = {'rigs': rigs, 'seconds_per_rig': round(statistics.median(seconds), 1)}
+    for key, values in per.items():
+        out[f'median_{key}'] = _median(values)
+        out[f'max_{key}'] = round(max(values), 9)
+    for name, r in runs.items():
+        out[f'set_a_fast_{name}_median_position_error_mm'] = round(1e3 * _median(r['position']), 4)
+        out[f'set_a_fast_{name}_median_orientation_error_deg'] = round(
+            math.degrees(_median(r['orientation'])), 4
+        )
+        out[f'set_a_fast_{name}_estimates'] = sum(r['estimates'])
+    return out
+
+
+def _lockstep(out: Path, seed: int, choice: RigChoice) -> dict[str, Any]:
+    from activesurv_bringup.evaluation import results_document
+    from activesurv_bringup.experiment import load_experiment
+    from activesurv_bringup.lockstep import run_lockstep
+
+    exp = load_experiment('A', 'fast', seed, rig=choice)
+    return results_document('A', 'fast', run_lockstep(exp), {'seed': seed})
+
+
+__all__ = ['run']

@@ -136,6 +136,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     sv.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     _add_foxglove(sv)
+    _add_rig(sv)
 
     rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
@@ -484,9 +485,13 @@ def main(argv: list[str] | None = None) -> int:
                 args.calibration,
             )
         elif args.command == 'surveil':
+            from activesurv_bringup.options import new_output_dir
+            from activesurv_bringup.rigs import choose
             from activesurv_bringup.surveil import SurveilOptions, parse_demand_at
 
+            new_output_dir(args.out)  # refused before anything is commissioned
             session = SurveilOptions(
+                rig=choose(args.rig, args.calibration, args.seed, args.out.parent),
                 duration=args.duration,
                 arrival_interval=args.arrival_interval,
                 demand_interval=args.demand_interval,

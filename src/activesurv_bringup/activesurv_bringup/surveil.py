@@ -32,6 +32,7 @@ from activesurv_bringup.graph import Progress, Until, graph_specs, run_graph
 from activesurv_bringup.launcher import NodeSpec
 from activesurv_bringup.options import RunOptions
 from activesurv_bringup.report import demand_record
+from activesurv_bringup.rigs import RigChoice
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.stream import PATH_KINDS, ObjectStream
@@ -54,6 +55,8 @@ class SurveilOptions:
         system: the cameras' motion class.
         seed: seeds the objects' paths and the image noise.
         path_kinds: the path kinds objects are drawn from.
+        rig: the rig and calibration (``--rig``, ``--calibration``); None: the set-up is the
+            truth.
     """
 
     duration: float | None = None
@@ -64,6 +67,7 @@ class SurveilOptions:
     system: str = 'fast'
     seed: int = 1
     path_kinds: tuple[str, ...] = PATH_KINDS
+    rig: RigChoice | None = None  # the simulated hardware and what the system is told
 
     def __post_init__(self) -> None:
         if self.duration is not None and not (
@@ -199,7 +203,7 @@ def run_surveil(
         NodeDiedError: if a node dies.
     """
     opts = options or RunOptions()
-    exp = load_experiment('A', s.system, s.seed)
+    exp = load_experiment('A', s.system, s.seed, rig=s.rig)
     bag = out_dir / 'bag'
     specs = surveil_specs(exp, bag, s, opts)
     limit = (s.duration or 7 * 24 * 3600.0) / max(opts.rtf, 1e-3) * 1.5 + 120.0

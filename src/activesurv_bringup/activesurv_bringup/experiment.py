@@ -111,7 +111,8 @@ class Experiment:
         if expected:
             return XYTable(self.expected, self.start_time, self.object_model)
         error = self.rig.rig.table_offset if self.rig is not None else None
-        return XYTable(self.actual, self.start_time, self.object_model, error)
+        enters = bool(self.config['object'].get('enters_at_start', False))
+        return XYTable(self.actual, self.start_time, self.object_model, error, enters)
 
     def true_camera(self, camera_id: str) -> tuple[CameraModel, CameraMount]:
         """A dynamic camera as it really is: the rig's optics and mount with stage errors."""

@@ -272,6 +272,7 @@ def graph_specs(
         'speed': float(obj['speed']),
         'acceleration': float(obj['acceleration']),
         'start_time': float(obj['start_time']),
+        'enters_at_start': bool(obj.get('enters_at_start', False)),
         'top_height': float(obj['top_height']),
         'side_offset': [float(v) for v in obj['side_offset']],
         'side_normal': [float(v) for v in obj['side_normal']],

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from activesurv_sim.xytable import (
+    PARKED,
     TABLE_RANGE,
     ObjectModel,
     ObjectState,
@@ -46,7 +47,6 @@ PATH_KINDS = (
     'reversal',
     'smooth',
 )
-PARKED = np.array([100.0, 100.0])  # where an absent object is: in no camera's view
 _MARGIN = 0.015  # m from the table's edges
 _X0, _X1 = TABLE_RANGE[0][0] + _MARGIN, TABLE_RANGE[0][1] - _MARGIN
 _Y0, _Y1 = TABLE_RANGE[1][0] + 0.03, TABLE_RANGE[1][1] - 0.03
@@ -277,4 +277,4 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
         from activesurv_sim.rig import load_rig
 
         error = load_rig(str(p['rig_file'])).table_offset
-    return XYTable(path, float(p['start_time']), model, error)
+    return XYTable(path, float(p['start_time']), model, error, bool(p.get('enters_at_start')))

@@ -51,6 +51,7 @@ PARAMS = (
         'line: x0, y0, x1, y1; parabola: start, apex, end (m)',
     ),
     Param('csv_file', '', 't,x,y CSV for path_type csv'),
+    Param('enters_at_start', False, 'the object is out of the workspace until start_time'),
     Param('rig_file', '', "rig YAML: the table's true position errors; empty: exact"),
     Param('speed', 0.02, 'path speed (m/s)', above=0.0),
     Param('acceleration', 0.02, 'path acceleration (m/s^2)', above=0.0),

@@ -212,8 +212,16 @@ class ObjectState:
     present: bool = True  # False: no object on the table (a stream between two objects)
 
 
+PARKED = np.array([100.0, 100.0])  # where an absent object is: in no camera's view
+
+
 class XYTable:
-    """The object on the table: at the path's first point until ``start_time``, then along it."""
+    """The object on the table: at the path's first point until ``start_time``, then along it.
+
+    With ``enters_at_start`` the object is not in the workspace before ``start_time`` (parked
+    out of every camera's view): it enters, moving, at ``start_time``, as in the paper's
+    experiments, so nothing can track it or dispatch for it before.
+    """
 
     def __init__(
         self,
@@ -221,12 +229,14 @@ class XYTable:
         start_time: float = 1.0,
         model: ObjectModel | None = None,
         position_error: Callable[[float, float], Array] | None = None,
+        enters_at_start: bool = False,
     ) -> None:
         """``position_error(x, y)``: where the table really is minus where it is commanded
         (the rig's error map, :meth:`activesurv_sim.rig.Rig.table_offset`); None: exact."""
         if not math.isfinite(start_time):
             raise ConfigError('start_time must be finite')
         self.position_error = position_error
+        self.enters_at_start = enters_at_start
         self.path = path
         self.start_time = start_time
         self.model = model or ObjectModel()
@@ -239,6 +249,8 @@ class XYTable:
 
     def state(self, t: float) -> ObjectState:
         tau = t - self.start_time
+        if tau < 0.0 and self.enters_at_start:
+            return self.model.at(PARKED, np.zeros(2), False, present=False)
         xy = self.path.position(tau)
         if self.position_error is not None:
             xy = xy + self.position_error(float(xy[0]), float(xy[1]))

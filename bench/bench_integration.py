@@ -86,6 +86,16 @@ def run() -> dict[str, Any]:
         for system in ('medium', 'fast')
     }
     out['set_B_recovery_demand'] = rec
+    # The paper's dip: Set B's first demand against Set A's (below 1: it starts worse).
+    out['set_B_first_demand_vs_A'] = {
+        system: round(curve[('B', system)][0] / max(curve[('A', system)][0], 1e-9), 3)
+        for system in SYSTEMS
+    }
+    out['visibility_curve_1e6'] = {
+        f'{s}_{system}': [round(v / 1e6, 1) for v in curve[(s, system)]]
+        for s in ('A', 'B')
+        for system in SYSTEMS
+    }
     out['set_B_recovers_within_3'] = bool(rec['medium'] <= 3 and rec['fast'] <= 3)
     out['set_B_fast_no_later_than_medium'] = bool(rec['fast'] <= rec['medium'])
     fast = [d for doc in by[('A', 'fast')] for d in doc['demands']]

@@ -158,8 +158,24 @@ def run_replay(
             if time.monotonic() > deadline:
                 raise NodeDiedError('replay nodes did not come up in 60 s')
             rclpy.spin_once(node, timeout_sec=0.1)
-        settle = time.monotonic() + 2.0
-        while time.monotonic() < settle:  # let the publishers match their subscribers
+        # Every subscriber must be matched before the first message: the imagers subscribe
+        # volatile, so a message sent before the match is lost to them (a camera's first
+        # demand then measured with a held, wrong stage state).
+        everyone = [*pubs.items(), ('/clock', clock_pub)]
+
+        def matched() -> bool:
+            for topic, pub in everyone:
+                known = len(node.get_subscriptions_info_by_topic(topic))
+                if known == 0 or pub.get_subscription_count() < known:
+                    return False
+            return True
+
+        deadline = time.monotonic() + 20.0
+        while not matched() and time.monotonic() < deadline:
+            launcher.check()
+            rclpy.spin_once(node, timeout_sec=0.05)
+        settle = time.monotonic() + 0.5
+        while time.monotonic() < settle:  # and the subscribers matched back
             rclpy.spin_once(node, timeout_sec=0.05)
         progress(f'replaying {len(messages)} messages into {len(specs)} nodes')
         t0_bag = messages[0].t_ns

@@ -175,6 +175,7 @@ def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
 
 def test_replay_reproduces_the_estimates(graph_run: Path, tmp_path: Path) -> None:
     r = _run('replay', str(graph_run), '--out', str(tmp_path / 'replay'))
+    assert 'with the recorded QoS' in r.stdout  # as ros2 bag play offers them
     assert r.returncode == 0, r.stderr[-3000:]
     rows = json.loads((tmp_path / 'replay' / 'replay.json').read_text())
     assert len(rows) == 10

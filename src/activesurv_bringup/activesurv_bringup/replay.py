@@ -122,11 +122,11 @@ def run_replay(
     if owns:
         rclpy.init()
     node = rclpy.create_node('activesurv_replayer')
-    # Every topic is offered reliable + transient local (depth 50), which matches every
-    # subscriber. Offering the recorded QoS instead (``playback_qos``, what ``ros2 bag play``
-    # does; the recorder notes it faithfully now) lost a camera's answer in 2 of 4 replays of
-    # this session: not yet the default (README, "Recorded QoS").
-    faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS') == '1' and (
+    # Each topic is offered with the QoS its publishers offered when it was recorded
+    # (``playback_qos``, what ``ros2 bag play`` does), so a bag replays the same way with either.
+    # Bags from before the recorder noted offered QoS, or ACTIVESURV_REPLAY_RECORDED_QOS=0,
+    # get reliable + transient local (depth 50) on every topic, which matches every subscriber.
+    faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS', '1') != '0' and (
         isinstance(info.get('recorder'), dict) and info['recorder'].get('qos') == 'offered'
     )
     recorded = offered_qos(bag) if faithful else {}
@@ -177,7 +177,8 @@ def run_replay(
         settle = time.monotonic() + 0.5
         while time.monotonic() < settle:  # and the subscribers matched back
             rclpy.spin_once(node, timeout_sec=0.05)
-        progress(f'replaying {len(messages)} messages into {len(specs)} nodes')
+        how = 'the recorded QoS' if faithful else 'reliable + transient local QoS'
+        progress(f'replaying {len(messages)} messages into {len(specs)} nodes with {how}')
         t0_bag = messages[0].t_ns
         t0_wall = time.monotonic()
         last_clock = 0

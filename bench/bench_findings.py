@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from activesurv_bringup.evaluation import recovery_demand
+
 SYSTEMS = ('static', 'medium', 'fast')
 
 
@@ -25,13 +27,6 @@ def _one(args: tuple[str, str, int]) -> list[float]:
     set_name, system, seed = args
     exp = load_experiment(set_name, system, seed, rig=choose(None, 'truth', seed))
     return [float(r.visibility) for r in run_lockstep(exp)]
-
-
-def _recovery(b: list[float], a: list[float]) -> int:
-    for j in range(len(a)):
-        if all(b[i] >= 0.8 * a[i] for i in range(j, len(a))):
-            return j
-    return len(a)
 
 
 def run() -> dict[str, Any]:
@@ -55,7 +50,7 @@ def run() -> dict[str, Any]:
         for x in ('medium', 'fast'):
             a, b = by[('A', x, seed)], by[('B', x, seed)]
             dips[x] += b[0] < a[0]
-            rec[x] = _recovery(b, a)
+            rec[x] = recovery_demand(b, a)
             within3[x] += rec[x] <= 3
         fast_first += rec['fast'] <= rec['medium']
     out['fast_beats_medium_beats_static_A_rigs'] = f'{order_holds["A"]}/{rigs}'

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from activesurv_bringup.evaluation import recovery_demand
+
 SEEDS = 20
 SYSTEMS = ('static', 'medium', 'fast')
 
@@ -38,14 +40,6 @@ def _one(args: tuple[str, str, int]) -> dict[str, Any]:
     doc = results_document(set_name, system, run_lockstep(exp))
     doc['seconds'] = time.perf_counter() - t0
     return doc
-
-
-def _recovery(b: list[float], a: list[float]) -> int:
-    """First demand from which B stays within 20 % of A (index; len if never)."""
-    for j in range(len(a)):
-        if all(b[i] >= 0.8 * a[i] for i in range(j, len(a))):
-            return j
-    return len(a)
 
 
 def run() -> dict[str, Any]:
@@ -82,7 +76,7 @@ def run() -> dict[str, Any]:
         for key, docs_ in by.items()
     }
     rec = {
-        system: _recovery(curve[('B', system)], curve[('A', system)])
+        system: recovery_demand(curve[('B', system)], curve[('A', system)])
         for system in ('medium', 'fast')
     }
     out['set_B_recovery_demand'] = rec

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from activesurv_bringup.board_views import Look, board_corners, collect_stations
 from activesurv_bringup.errors import ConfigError, NodeDiedError
+from activesurv_bringup.graph import stage_spec
 from activesurv_bringup.launcher import Launcher, NodeSpec
 from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
@@ -79,23 +80,7 @@ def commission_specs(rig_file: Path, setup: Setup, nominal_dir: Path) -> list[No
     ]
     for i, s in enumerate(setup.sensors):
         cid = s.camera_id
-        specs.append(
-            NodeSpec(
-                f'{cid}_stage',
-                'activesurv_sim.sim_stage_node',
-                parameters={
-                    **wall,
-                    'camera_id': cid,
-                    'joints': list(s.joint_names),
-                    'kinds': (['linear'] if s.has_linear else []) + ['rotary'],
-                    'min': [lim.min_position for lim in s.limits],
-                    'max': [lim.max_position for lim in s.limits],
-                    'initial': [float(v) for v in setup.initial[cid]],
-                    'motion_class': 'hardware',
-                    'publish_rate': 20.0,
-                },
-            )
-        )
+        specs.append(stage_spec(s, setup.initial[cid], 'hardware', 20.0, sim_time=False))
         specs.append(_camera_spec(cid, rig_file, nominal_dir, {'seed': 500 + i}))
     return specs
 

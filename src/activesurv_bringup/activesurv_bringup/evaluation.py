@@ -212,3 +212,12 @@ def summary(doc: dict[str, Any]) -> dict[str, float]:
         'estimates': float(len(pos)),
         'demands': float(len(rows)),
     }
+
+
+def recovery_demand(b: Sequence[float], a: Sequence[float], within: float = 0.8) -> int:
+    """First demand from which curve ``b`` stays at or above ``within`` of curve ``a`` (its
+    index; ``len(a)`` if never): when Set B has caught up with Set A."""
+    for j in range(len(a)):
+        if all(b[i] >= within * a[i] for i in range(j, len(a))):
+            return j
+    return len(a)

@@ -48,6 +48,27 @@ def mount_parameters(sensor: Sensor) -> dict[str, Any]:
     }
 
 
+def stage_spec(
+    sensor: Sensor, initial: Any, motion_class: str, publish_rate: float, sim_time: bool
+) -> NodeSpec:
+    """The simulated stage of one camera: its joints, soft limits and start positions."""
+    return NodeSpec(
+        f'{sensor.camera_id}_stage',
+        'activesurv_sim.sim_stage_node',
+        parameters={
+            'use_sim_time': sim_time,
+            'camera_id': sensor.camera_id,
+            'joints': list(sensor.joint_names),
+            'kinds': (['linear'] if sensor.has_linear else []) + ['rotary'],
+            'min': [lim.min_position for lim in sensor.limits],
+            'max': [lim.max_position for lim in sensor.limits],
+            'initial': [float(v) for v in initial],
+            'motion_class': motion_class,
+            'publish_rate': float(publish_rate),
+        },
+    )
+
+
 def rig_files(exp: Experiment, out: Path) -> dict[str, str]:
     """Write the run's rig (the simulator's truth), its calibration and the believed set-up
     into ``out/rig`` for the nodes; returns the paths (empty without a rig)."""
@@ -214,24 +235,9 @@ def graph_specs(
         fault = by_cam.get(cid)
         if fault is not None and fault.kind is FaultKind.DEAD:
             continue  # the camera's nodes are not running
-        kinds = (['linear'] if s.has_linear else []) + ['rotary']
         specs.append(
-            NodeSpec(
-                f'{cid}_stage',
-                'activesurv_sim.sim_stage_node',
-                parameters={
-                    **sim,
-                    'camera_id': cid,
-                    'joints': list(s.joint_names),
-                    'kinds': kinds,
-                    'min': [lim.min_position for lim in s.limits],
-                    'max': [lim.max_position for lim in s.limits],
-                    'initial': [float(v) for v in exp.setup.initial[cid]],
-                    'motion_class': exp.system,
-                    'publish_rate': 10.0,  # states at the demand instants come extra
-                },
-            )
-        )
+            stage_spec(s, exp.setup.initial[cid], exp.system, 10.0, sim_time=True)
+        )  # 10 Hz: states at the demand instants come extra
         cam_params: dict[str, Any] = {
             **sim,
             'camera_id': cid,

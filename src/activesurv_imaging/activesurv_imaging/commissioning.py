@@ -53,28 +53,6 @@ class Station:
     sightings: tuple[BoardSighting, ...]
 
 
-@dataclass(frozen=True)
-class CameraCommissioning:
-    """The result for one camera.
-
-    Attributes:
-        camera: calibrated intrinsics.
-        mount: fitted mount.
-        reprojection_rms_px: RMS corner reprojection error of the intrinsics fit.
-        mount_rms_px: RMS reprojection error of every corner through the fitted mount.
-        stations: stations used.
-        c1_rotation_centre_offset: the optical centre's offset from the axis by eq. C1 (optical
-            frame at zero rotation), or None without a rotation pair.
-    """
-
-    camera: CameraModel
-    mount: CameraMount
-    reprojection_rms_px: float
-    mount_rms_px: float
-    stations: int
-    c1_rotation_centre_offset: Array | None
-
-
 def _world_points(station: Station, board: Array) -> tuple[Array, Array]:
     """All corners a station saw, in world coordinates (M, 3), and their pixels (M, 2)."""
     obj = np.vstack([board @ s.T_world_board.R.T + s.T_world_board.t for s in station.sightings])
@@ -293,7 +271,6 @@ def pixel_error(
 
 __all__ = [
     'BoardSighting',
-    'CameraCommissioning',
     'Station',
     'board_centre_in_camera',
     'c1_offset',

@@ -236,7 +236,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
     port = getattr(args, 'foxglove', None)
     return RunOptions(
         extra=() if port is None else (live_view_spec(port),),
-        preview_rate=0.0 if port is None else 10.0,  # the live view shows cameras at 10 Hz
+        preview_rate=0.0 if port is None else 12.0,  # >= 10 Hz in the live view
         rtf=float(args.rtf),
         image_rate=float(getattr(args, 'image_rate', 2.0)),
         faults=tuple(parse_fault(f) for f in getattr(args, 'fault', [])),

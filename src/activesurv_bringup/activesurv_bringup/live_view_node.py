@@ -30,7 +30,7 @@ from activesurv_common.ros.parameters import Param, declare
 PARAMS = (
     Param('port', 8765, 'WebSocket port', minimum=1),
     Param('host', '127.0.0.1', 'address to listen on (0.0.0.0: every interface)'),
-    Param('image_rate', 10.0, 'images per second per camera (0: all)', minimum=0.0),
+    Param('image_rate', 15.0, 'most images per second per image topic (0: all)', minimum=0.0),
     Param('topics', list(DEFAULT_TOPICS), 'topics to serve (shell patterns)'),
     Param('discovery_period', 1.0, 's between looks for new topics', above=0.0),
 )

@@ -15,7 +15,6 @@ Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camer
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -24,6 +23,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from activesurv_common.errors import CommonError
+from activesurv_common.pacing import Pacer
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
@@ -89,15 +89,14 @@ class SimCameraNode(Node):
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
         rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
-        self._last_streamed = {False: -math.inf, True: -math.inf}
-        if rate > 0.0:
-            self.create_timer(1.0 / rate, self._on_stream)
+        # States pace the streams (a busy process's timer drops ticks), see _on_state.
+        self._stream = Pacer(rate) if rate > 0.0 else None
+        self._preview = Pacer(preview) if preview > 0.0 else None
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         if preview > 0.0:
             self._preview_pub = self.create_publisher(
                 Image, topics.preview(self.camera_id), qos.SENSOR_RELIABLE
             )
-            steady = Clock(clock_type=ClockType.STEADY_TIME)  # for viewers: wall time
-            self.create_timer(1.0 / preview, lambda: self._on_stream(preview=True), clock=steady)
         self.frames_published = 0
         self.frames_ahead = 0
         self._frozen: Any = None
@@ -106,17 +105,17 @@ class SimCameraNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_object(self, msg: ObjectState) -> None:
-        if not self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg)):
+        t = time_to_sec(msg.header.stamp)
+        if not self.sim.objects.add(t, object_state_vector(msg)):
             self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
-        elif self._pending:
-            self._on_tick()  # a frame waiting for this state is rendered now, not on a tick
+        else:
+            self._on_state(t)
 
     def _on_table(self, msg: JointState) -> None:
         xy = joint_vector(msg, TABLE_JOINTS)
-        if xy is not None and self.sim.objects.add(
-            time_to_sec(msg.header.stamp), np.r_[xy, [0.0] * 7]
-        ):
-            self._on_tick()
+        t = time_to_sec(msg.header.stamp)
+        if xy is not None and self.sim.objects.add(t, np.r_[xy, [0.0] * 7]):
+            self._on_state(t)
 
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
@@ -153,8 +152,10 @@ class SimCameraNode(Node):
 
     def _publish(self, t: float, preview: bool = False) -> None:
         hold = float(self.get_parameter('state_hold').value)
-        try:
-            gray, ahead = self.sim.frame_at(t, hold)
+        try:  # a preview leaves the frames rendered ahead for the demands alone
+            gray, ahead = (
+                (self.sim.render_at(t, hold), False) if preview else self.sim.frame_at(t, hold)
+            )
         except (SimError, CommonError) as exc:
             self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
             return
@@ -173,21 +174,21 @@ class SimCameraNode(Node):
 
     def _on_tick(self) -> None:
         g = self.get_parameter
-        due = self.sim.due(
-            self._pending,
-            self._now(),
-            float(g('trigger_delay').value),
-            float(g('state_hold').value),
-        )
-        for t in due:
+        delay, hold = float(g('trigger_delay').value), float(g('state_hold').value)
+        for t in self.sim.due(self._pending, self._now(), delay, hold):
             self._pending.discard(t)
             self._publish(t)
 
-    def _on_stream(self, preview: bool = False) -> None:
-        t = self.sim.objects.latest_time
-        if t is not None and t > self._last_streamed[preview]:
-            self._last_streamed[preview] = t
-            self._publish(t, preview)
+    def _on_state(self, t: float) -> None:
+        """A new object (or table) state: the frames waiting for it, and the streams."""
+        if self._pending:
+            self._on_tick()  # rendered now, not on the next tick
+        newest = t >= (self.sim.objects.latest_time or t)
+        if self._stream is not None and newest and self._stream.ready(t):
+            self._publish(t)
+        wall = self._steady.now().nanoseconds * 1e-9
+        if self._preview is not None and self._preview.ready(wall):
+            self._publish(t, preview=True)  # wall time: for viewers
 
 
 def main(args: list[str] | None = None) -> int:

@@ -164,7 +164,14 @@ def test_report_regenerates_results_and_plots(graph_run: Path) -> None:
         assert (graph_run / name).exists(), name
     assert (graph_run / 'predictions_A_fast.png').exists()
     assert (graph_run / 'scene_A_fast.png').stat().st_size > 10_000  # from the frame tree
-    assert 'scene_A_fast.png' in (graph_run / 'report.md').read_text()
+    report = (graph_run / 'report.md').read_text()
+    assert 'scene_A_fast.png' in report
+    # Our errors beside the paper's findings for the set, with the calibration used.
+    med = 1e3 * float(np.median([r['position_error'] for r in after['demands']
+                                 if r['position_error'] is not None]))  # fmt: skip
+    row = next(line for line in report.splitlines() if line.startswith('| A | fast |'))
+    assert f'{med:.3f} /' in row
+    assert 'Paper, Set A:' in report
     assert 'fast' in r.stdout
     # The bag's horizons give each demand its prediction 2 s ahead and at the capture request.
     assert after['predictor'] == 'imm'

@@ -17,6 +17,7 @@
     activesurv demo [--out DIR] [--mode {graph,lockstep}] [--rig RIG.yaml]
         [--calibration {CALDIR,nominal,truth}]
     activesurv commission (--rig RIG.yaml | --live) --out CALDIR [--cameras cam1,cam2]
+    activesurv lab --rig RIG.yaml --out LABDIR [--cameras cam1,cam2]   # for commission --live
     activesurv rig nominal --out RIG.yaml
     activesurv rig perturb --in RIG.yaml --seed S --out RIG2.yaml
     activesurv bag reindex BAG
@@ -172,6 +173,15 @@ def _build_parser() -> argparse.ArgumentParser:
         help='commission the stages, table and cameras running on this ROS domain',
     )
     com.add_argument(
+        '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
+    )
+
+    lab = sub.add_parser(
+        'lab', help='an emulated lab (serial controllers, bridges, cameras) for commission --live'
+    )
+    lab.add_argument('--rig', type=Path, required=True, help='rig YAML the cameras simulate')
+    lab.add_argument('--out', type=Path, required=True, help='directory for ports, logs (new)')
+    lab.add_argument(
         '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
     )
 
@@ -387,6 +397,10 @@ def replay(
     return rows
 
 
+def _camera_list(cameras: str | None) -> list[str] | None:
+    return [c.strip() for c in cameras.split(',') if c.strip()] if cameras else None
+
+
 def commission(
     out: Path, rig: Path | None, live: bool = False, cameras: str | None = None
 ) -> dict[str, Any]:
@@ -397,7 +411,7 @@ def commission(
     if (rig is None) == (not live):
         raise ConfigError('give --rig RIG.yaml (simulation) or --live (the running hardware)')
     the_rig = resolve_rig(rig, 0)[0] if rig is not None else None
-    chosen = [c.strip() for c in cameras.split(',') if c.strip()] if cameras else None
+    chosen = _camera_list(cameras)
 
     def say(text: str) -> None:
         print(f'  commission: {text}', flush=True)
@@ -513,6 +527,10 @@ def main(argv: list[str] | None = None) -> int:
             demo(args.out, args.seed, args.mode, run_options(args), args.rig, args.calibration)
         elif args.command == 'commission':
             commission(args.out, args.rig, args.live, args.cameras)
+        elif args.command == 'lab':
+            from activesurv_bringup.lab import run_lab
+
+            run_lab(args.rig, args.out, _camera_list(args.cameras))
         elif args.command == 'rig':
             from activesurv_bringup.rigs import run as write_rig
 

@@ -76,16 +76,16 @@ def commission_specs(rig_file: Path, setup: Setup, nominal_dir: Path) -> list[No
                 'publish_rate': 20.0,
             },
         ),
-        _camera_spec('overhead', rig_file, nominal_dir, {'camera_type': 'overhead'}),
+        camera_spec('overhead', rig_file, nominal_dir, {'camera_type': 'overhead'}),
     ]
     for i, s in enumerate(setup.sensors):
         cid = s.camera_id
         specs.append(stage_spec(s, setup.initial[cid], 'hardware', 20.0, sim_time=False))
-        specs.append(_camera_spec(cid, rig_file, nominal_dir, {'seed': 500 + i}))
+        specs.append(camera_spec(cid, rig_file, nominal_dir, {'seed': 500 + i}))
     return specs
 
 
-def _camera_spec(cid: str, rig_file: Path, nominal_dir: Path, extra: dict[str, Any]) -> NodeSpec:
+def camera_spec(cid: str, rig_file: Path, nominal_dir: Path, extra: dict[str, Any]) -> NodeSpec:
     return NodeSpec(
         f'{cid}_camera',
         'activesurv_sim.sim_camera_node',
@@ -173,8 +173,9 @@ class Commissioner:
             for n, v in zip(names, q, strict=True)
         )
 
-    def move(self, stage: str, names: Sequence[str], q: Array, tol: float = 1e-7) -> None:
-        """Send a goal and wait until the stage reports it there, at rest.
+    def move(self, stage: str, names: Sequence[str], q: Array, tol: float = 1e-5) -> None:
+        """Send a goal and wait until the stage reports it there (within ``tol``, m or rad: a
+        controller rounds to its steps), at rest. Captures use the positions reported then.
 
         Raises:
             NodeDiedError: if it does not get there in ``settle_timeout``.

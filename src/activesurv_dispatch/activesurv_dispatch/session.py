@@ -173,7 +173,14 @@ class Dispatcher:
         timeout = self.config.camera_timeout
         out = Outputs()
         changed = False
+        # Every stage silent at once, briefly: this node or its transport stalled (a busy
+        # process sees its timer before the states queued behind it), not every stage died.
+        # Dropping them all would leave the next demand without a camera; wait a little.
+        ages = [now - st for c, st in self.joint_stamp.items() if c not in self.down]
+        stalled = len(ages) > 1 and timeout < min(ages) < 3.0 * timeout
         for cid, stamp in self.joint_stamp.items():
+            if stalled and cid not in self.down:
+                continue
             why = ''
             if now - stamp > timeout:
                 why = f'no stage state for {timeout:g} s'

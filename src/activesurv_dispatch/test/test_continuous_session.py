@@ -64,3 +64,20 @@ def test_a_long_session_forgets_demands_long_past() -> None:
     d.tick(5.0 + FORGET_AFTER + 1.0)
     assert d.demands == {}
     assert d.scheduler.requested == {}
+
+
+def test_every_stage_silent_at_once_is_a_stall_not_every_camera_dead() -> None:
+    d, away = _session()
+    # All four silent for 0.6 s (this node or its transport stalled): nobody is dropped ...
+    out = d.tick(0.6)
+    assert not d.down
+    assert not [e for e in out.events if 'dispatching without it' in e[1]]
+    # ... but one silent while the others speak is dropped, stall or not,
+    for c, q in away.items():
+        if c != 'cam2':
+            d.on_joints(c, q, 1.0)
+    d.tick(1.0)
+    assert set(d.down) == {'cam2'}
+    # and a silence that lasts is a silence.
+    d.tick(2.6)
+    assert set(d.down) == set(away)

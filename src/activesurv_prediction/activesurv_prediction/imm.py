@@ -23,6 +23,16 @@ would start with (``sigma_r``), a CV object's ``a`` the acceleration it would ta
 (``sigma_a``). When the IMM mixes a mode into another, the new mode inherits that prior: an
 object that starts from rest starts with an honestly unknown velocity.
 
+Manoeuvres are mostly along the track: objects stop, turn back and change speed along their
+path, and turn at the few mm/s^2 of a bend. So the acceleration a CV object would take up is
+anisotropic: ``sigma_a`` along the direction of travel, ``lateral_acceleration_std`` across
+it (likewise the CV and CA noise, if lateral values are given). While the object moves, the
+filter's Q is that of the *track frame* (first axis along the reference velocity) turned into
+the world frame, and predictions run in the track frame (:class:`MomentGrid` with ``track``);
+an object at rest may start in any direction and gets the along-track values on both axes.
+Before, the 15 mm/s^2 sideways a CV object might take up made a line's ellipse 9 mm wide 2 s
+ahead for a 1 mm error.
+
 Mode switching is a continuous-time Markov chain with generator ``rates`` (1/s), so the
 transition matrix of a step is ``M(dt) = expm(rates * dt)`` whatever the fix rate.
 
@@ -68,6 +78,8 @@ class ModeSet:
         acceleration_psd: q_a, white acceleration of CV, m^2/s^3.
         acceleration_std: sigma_a, acceleration per axis taken up when CA starts, m/s^2.
         jerk_psd: q_j, white jerk of CA, m^2/s^5.
+        lateral_acceleration_std, lateral_acceleration_psd, lateral_jerk_psd: the same across
+            the direction of travel (None: as along it).
     """
 
     rates: Array = field(
@@ -78,6 +90,9 @@ class ModeSet:
     acceleration_psd: float = 1e-6
     acceleration_std: float = 0.015
     jerk_psd: float = 1.2e-6
+    lateral_acceleration_std: float | None = 0.002
+    lateral_acceleration_psd: float | None = None
+    lateral_jerk_psd: float | None = None
 
     def __post_init__(self) -> None:
         r = np.asarray(self.rates, dtype=np.float64)
@@ -94,20 +109,39 @@ class ModeSet:
             'acceleration_psd',
             'acceleration_std',
             'jerk_psd',
+            'lateral_acceleration_std',
+            'lateral_acceleration_psd',
+            'lateral_jerk_psd',
         ):
+            if getattr(self, name) is None:
+                continue
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v > 0.0):
                 raise PredictionError(f'{name} must be finite and > 0, got {v}')
         lam, vec = np.linalg.eig(r)
         object.__setattr__(self, '_eig', (lam, vec, np.linalg.inv(vec)))
 
-    def grid(self, step: float) -> MomentGrid:
-        """The composed step maps of this mode set for ``step``, shared by every predictor
-        that uses it (they cost a few ms to build and never change)."""
-        grids: dict[float, MomentGrid] = self.__dict__.setdefault('_grids', {})
-        if step not in grids:
-            grids[step] = MomentGrid(self, step)
-        return grids[step]
+    @property
+    def anisotropic(self) -> bool:
+        """Whether the lateral noise differs from the along-track noise."""
+        return any(
+            getattr(self, f'lateral_{n}') is not None
+            for n in ('acceleration_std', 'acceleration_psd', 'jerk_psd')
+        )
+
+    def lateral(self, name: str) -> float:
+        """The lateral value of ``name`` (the along-track one where none is given)."""
+        v = getattr(self, f'lateral_{name}')
+        return float(getattr(self, name) if v is None else v)
+
+    def grid(self, step: float, track: bool = False) -> MomentGrid:
+        """The composed step maps of this mode set for ``step`` (in the track frame if
+        ``track``), shared by every predictor that uses it (they cost a few ms to build and
+        never change)."""
+        grids: dict[tuple[float, bool], MomentGrid] = self.__dict__.setdefault('_grids', {})
+        if (step, track) not in grids:
+            grids[step, track] = MomentGrid(self, step, track=track)
+        return grids[step, track]
 
     def transition(self, dt: float) -> Array:
         """``M(dt) = expm(rates dt)`` (3, 3), row-stochastic."""
@@ -127,26 +161,45 @@ class ModeSet:
         F, Q = self.models_batch(np.array([dt]))
         return F[0], Q[0]
 
-    def models_batch(self, dts: Array) -> tuple[Array, Array]:
+    def models_batch(self, dts: Array, track: bool = False) -> tuple[Array, Array]:
         """F (K, 3, 6, 6) and Q (K, 3, 6, 6) for each of ``dts`` (K,).
 
         Every entry is a polynomial of degree <= 5 in dt; the coefficients are found once
         from :meth:`models_explicit` (it runs on every prediction, so two matrix products
         instead of some twenty array assignments).
         """
-        coef = getattr(self, '_coef', None)
+        coefs: dict[bool, Array] = self.__dict__.setdefault('_coefs', {})
+        coef = coefs.get(track)
         if coef is None:
             nodes = np.arange(6, dtype=np.float64)
-            F, Q = self.models_explicit(nodes)
+            F, Q = self.models_explicit(nodes, track)
             vander = np.vander(nodes, 6, increasing=True)
             coef = np.linalg.solve(vander, np.concatenate([F, Q], axis=1).reshape(6, -1))
-            object.__setattr__(self, '_coef', coef)
+            coefs[track] = coef
         powers = np.asarray(dts, dtype=np.float64)[:, None] ** np.arange(6)
         both = (powers @ coef).reshape(len(dts), 6, 6, 6)
         return both[:, :3], both[:, 3:]
 
-    def models_explicit(self, dts: Array) -> tuple[Array, Array]:
-        """F and Q as written in the module docstring (the reference of :meth:`models_batch`)."""
+    def models_explicit(self, dts: Array, track: bool = False) -> tuple[Array, Array]:
+        """F and Q as written in the module docstring (the reference of :meth:`models_batch`);
+        with ``track``, the second axis (lateral) takes the lateral noise."""
+        F, q = self._axis_models(dts, self.acceleration_std, self.acceleration_psd, self.jerk_psd)
+        Q = np.zeros_like(F)
+        Q[..., :3, :3] = q
+        if track:
+            q = self._axis_models(
+                dts,
+                self.lateral('acceleration_std'),
+                self.lateral('acceleration_psd'),
+                self.lateral('jerk_psd'),
+            )[1]
+        Q[..., 3:, 3:] = q
+        return F, Q
+
+    def _axis_models(
+        self, dts: Array, acceleration_std: float, qa: float, qj: float
+    ) -> tuple[Array, Array]:
+        """F (K, 3, 6, 6) and one axis's Q (K, 3, 3, 3)."""
         k = len(dts)
         dt = dts
         d2, d3 = dt * dt, dt * dt * dt
@@ -156,14 +209,13 @@ class ModeSet:
         f[:, :, 0, 0] = 1.0  # position carries over in every mode
         q[:, 0, 0, 0] = self.stationary_psd * dt
         q[:, 0, 1, 1] = self.restart_speed_std**2
-        q[:, 0, 2, 2] = self.acceleration_std**2
-        q[:, 1, 2, 2] = self.jerk_psd * dt  # CV carries CA's acceleration, unused
-        f[:, 1:, 1, 1] = f[:, 1, 2, 2] = 1.0
+        q[:, 0, 2, 2] = acceleration_std**2
+        q[:, 1, 2, 2] = acceleration_std**2  # the acceleration CV would take up
+        f[:, 1:, 1, 1] = 1.0
         f[:, 1:, 0, 1] = dt[:, None]
         f[:, 2, 1, 2] = dt
         f[:, 2, 0, 2] = d2 / 2
         f[:, 2, 2, 2] = 1.0
-        qa, qj = self.acceleration_psd, self.jerk_psd
         q[:, 1, 0, 0], q[:, 1, 1, 1] = qa * d3 / 3, qa * dt
         q[:, 1, 0, 1] = q[:, 1, 1, 0] = qa * d2 / 2
         q[:, 2, 0, 0], q[:, 2, 1, 1], q[:, 2, 2, 2] = qj * d5 / 20, qj * d3 / 3, qj * dt
@@ -171,10 +223,16 @@ class ModeSet:
         q[:, 2, 0, 2] = q[:, 2, 2, 0] = qj * d3 / 6
         q[:, 2, 1, 2] = q[:, 2, 2, 1] = qj * d2 / 2
         F = np.zeros((k, 3, 6, 6))
-        Q = np.zeros((k, 3, 6, 6))
         F[..., :3, :3] = F[..., 3:, 3:] = f
-        Q[..., :3, :3] = Q[..., 3:, 3:] = q
-        return F, Q
+        return F, q
+
+
+def track_rotation(heading: float) -> Array:
+    """T (6, 6) taking a state from the world frame to the track frame (first axis along
+    ``heading``, rad, second to its left): ``x_track = T x_world``."""
+    c, s = math.cos(heading), math.sin(heading)
+    out: Array = np.kron(np.array([[c, s], [-s, c]]), np.eye(3))
+    return out
 
 
 def generator(off_diagonal: list[list[float]]) -> Array:
@@ -256,10 +314,12 @@ def update(s: ModeStates, z: Array, r: float) -> tuple[ModeStates, float]:
     return ModeStates(x, 0.5 * (P + P.transpose(0, 2, 1)), mu), d2_mix
 
 
-def _step_operators(modes: ModeSet, dts: Array) -> tuple[Array, Array, Array, Array]:
+def _step_operators(
+    modes: ModeSet, dts: Array, track: bool = False
+) -> tuple[Array, Array, Array, Array]:
     """Per step length: transposed transition (K, 3, 3), augmented G (K, 3, 7, 7), its
     transpose, and Q (K, 3, 6, 6)."""
-    F, Q = modes.models_batch(dts)
+    F, Q = modes.models_batch(dts, track)
     G = np.zeros((len(dts), 3, 7, 7))
     G[..., :6, :6] = F
     G[..., 6, 6] = 1.0
@@ -281,11 +341,11 @@ def step_grid(lead: float, step: float) -> float:
     return step if lead < 2.0 - 1e-9 else (2.0 * step if lead < 4.0 - 1e-9 else 4.0 * step)
 
 
-def _step_map(modes: ModeSet, dt: float) -> Array:
+def _step_map(modes: ModeSet, dt: float, track: bool = False) -> Array:
     """The moment recursion over one step of ``dt`` as one linear map on the stacked
     row-major ``A_j`` (147,): ``vec(G B G^T) = (G kron G) vec(B)``, plus ``Q`` times
     ``B[6, 6]``, after mixing ``B_j = sum_i M_ij A_i``."""
-    Mt, G, _, Q = _step_operators(modes, np.array([dt]))
+    Mt, G, _, Q = _step_operators(modes, np.array([dt]), track)
     L = np.zeros((147, 147))
     for j in range(3):
         K = np.kron(G[0, j], G[0, j])
@@ -298,10 +358,14 @@ def _step_map(modes: ModeSet, dt: float) -> Array:
 class MomentGrid:
     """Composed step maps from now to the points of the step grid (:func:`step_grid`), built
     once per mode set and step and grown as far ahead as predictions go (up to ``horizon``
-    seconds; further predictions step on one by one)."""
+    seconds; further predictions step on one by one). With ``track``, the maps are those of
+    the track frame (first axis along the velocity, second lateral)."""
 
-    def __init__(self, modes: ModeSet, step: float, horizon: float = 60.0) -> None:
+    def __init__(
+        self, modes: ModeSet, step: float, horizon: float = 60.0, track: bool = False
+    ) -> None:
         self.modes = modes
+        self.track = track
         self.step = step
         self.horizon = horizon
         self.times = [0.0]
@@ -314,14 +378,19 @@ class MomentGrid:
             dt = step_grid(self.times[-1], self.step)
             if self.times[-1] + dt > lead + 1e-9:
                 break
-            self.maps.append(_step_map(self.modes, dt) @ self.maps[-1])
+            self.maps.append(_step_map(self.modes, dt, self.track) @ self.maps[-1])
             self.times.append(self.times[-1] + dt)
             self.stack = np.concatenate(self.maps)
         return int(np.searchsorted(self.times, lead + 1e-9, side='right')) - 1
 
 
 def propagate_moments(
-    s: ModeStates, modes: ModeSet, leads: Array, origin: Array, grid: MomentGrid
+    s: ModeStates,
+    modes: ModeSet,
+    leads: Array,
+    origin: Array,
+    grid: MomentGrid,
+    heading: float = 0.0,
 ) -> Array:
     """Switching-aware moments of the position ``leads`` seconds ahead.
 
@@ -335,6 +404,8 @@ def propagate_moments(
         leads: (K,) times ahead, s (>= 0).
         origin: (2,) position subtracted from the positions, for precision.
         grid: the composed step maps (kept by the caller between calls).
+        heading: direction of travel (rad, world), the track frame's first axis, used if
+            ``grid.track``.
 
     Returns:
         (K, 3, 3): ``[[E[zz^T], E[z]], [E[z]^T, 1]]`` of the position ``z`` relative to
@@ -342,8 +413,14 @@ def propagate_moments(
     """
     x = s.x.copy()
     x[:, ::3] -= origin
+    P = s.P
+    c, si = math.cos(heading), math.sin(heading)
+    if grid.track:  # into the track frame: along = (c, s), lateral = (-s, c)
+        T = track_rotation(heading)
+        x = x @ T.T
+        P = T @ P @ T.T
     A = np.zeros((3, 7, 7))
-    A[:, :6, :6] = s.P + x[:, :, None] * x[:, None, :]
+    A[:, :6, :6] = P + x[:, :, None] * x[:, None, :]
     A[:, :6, 6] = A[:, 6, :6] = x
     A[:, 6, 6] = 1.0
     A *= s.mu[:, None, None]
@@ -358,8 +435,12 @@ def propagate_moments(
         dt = np.array(
             [min(r, step_grid(float(a), grid.step)) for r, a in zip(rest[go], at, strict=True)]
         )
-        before[go] = _advance(before[go], *_step_operators(modes, dt))
+        before[go] = _advance(before[go], *_step_operators(modes, dt, grid.track))
         rest[go] -= dt
     sel = np.array([0, 3, 6])
     out: Array = before.sum(axis=1)[:, sel][:, :, sel]
+    if grid.track:  # back to the world frame
+        R = np.eye(3)
+        R[:2, :2] = [[c, -si], [si, c]]
+        out = R @ out @ R.T
     return out

@@ -75,6 +75,7 @@ class TargetPredictor:
         max_rejections: int = 8,
         step: float = 0.5,
         reference_jerk_std: float = 7e-5,
+        track_speed: float = 0.002,
     ) -> None:
         check_positive(
             measurement_std=measurement_std,
@@ -93,13 +94,17 @@ class TargetPredictor:
             raise PredictionError(f'step must be in (0, 2] s, got {step}')
         self.step = float(step)
         self.reference_jerk_std = float(reference_jerk_std)
+        self.track_speed = float(track_speed)
         self.reference = AxisFilter(self.measurement_std, self.reference_jerk_std)
         self._reference_misses = 0
         self.states: imm.ModeStates | None = None
         self.last_time: float | None = None
         self.updates = 0
-        self._steps: dict[float, tuple[Array, Array, Array]] = {}
+        self._steps: dict[float, tuple[Array, Array, Array, Array | None]] = {}
         self._grid = self.modes.grid(self.step)
+        self._track_grid = (
+            self.modes.grid(self.step, track=True) if self.modes.anisotropic else None
+        )
 
     # -- state -------------------------------------------------------------------------------
     @property
@@ -178,7 +183,12 @@ class TargetPredictor:
         dt = t - self.last_time
         predicted = self.states
         if dt > 0.0:
-            predicted = imm.mix_and_predict(self.states, *self._step(dt))
+            M, F, Q, Qt = self._step(dt)
+            heading = self._heading(self.states)
+            if heading is not None and Qt is not None:
+                T = imm.track_rotation(heading)
+                Q = T.T @ Qt @ T  # the track frame's noise, in the world frame
+            predicted = imm.mix_and_predict(self.states, M, F, Q)
         self.states = predicted
         self.last_time = t
         updated, d2 = imm.update(predicted, z, self.r)
@@ -210,13 +220,24 @@ class TargetPredictor:
         d2 = self.reference.update(t, z)
         self._reference_misses = self._reference_misses + 1 if d2 > 16.0 else 0
 
-    def _step(self, dt: float) -> tuple[Array, Array, Array]:
-        """M, F, Q of a filter step (cached: fixes come at a steady rate)."""
+    def _heading(self, s: imm.ModeStates) -> float | None:
+        """Direction of travel (rad) if the object moves (and the noise is anisotropic)."""
+        if self._track_grid is None or s.mu[imm.STATIONARY] >= 0.5:
+            return None
+        v = self.reference.x[:, 1]
+        if float(np.hypot(*v)) < self.track_speed:
+            return None
+        return math.atan2(float(v[1]), float(v[0]))
+
+    def _step(self, dt: float) -> tuple[Array, Array, Array, Array | None]:
+        """M, F, Q (world) and Q of the track frame of a filter step (cached: fixes come at
+        a steady rate)."""
         key = round(dt, 9)
         hit = self._steps.get(key)
         if hit is None:
             F, Q = self.modes.models(dt)
-            hit = (self.modes.transition(dt), F, Q)
+            Qt = self.modes.models_batch(np.array([dt]), True)[1][0] if self._track_grid else None
+            hit = (self.modes.transition(dt), F, Q, Qt)
             if len(self._steps) > 64:
                 self._steps.clear()
             self._steps[key] = hit
@@ -267,7 +288,9 @@ class TargetPredictor:
         leads = np.array(ts) - t0
         origin = s.mu @ s.x[:, ::3]
         means = self._means(s, leads) - origin
-        moments = imm.propagate_moments(s, self.modes, leads, origin, self._grid)
+        heading = self._heading(s)
+        grid = self._grid if heading is None or self._track_grid is None else self._track_grid
+        moments = imm.propagate_moments(s, self.modes, leads, origin, grid, heading or 0.0)
         ezz, ez = moments[:, :2, :2], moments[:, :2, 2]
         mm = means[:, :, None] * means[:, None, :]
         cov = ezz - ez[:, :, None] * means[:, None, :] - means[:, :, None] * ez[:, None, :] + mm

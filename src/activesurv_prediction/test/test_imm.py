@@ -54,7 +54,10 @@ def test_imm_filtering_matches_filterpy_imm_estimator() -> None:
     assert ours.mu[imm.STATIONARY] > 0.9  # 5 s: the object stopped at 4 s
 
 
-def test_switching_moments_match_a_monte_carlo_of_the_jump_system() -> None:
+@pytest.mark.parametrize('heading', [None, 0.7])
+def test_switching_moments_match_a_monte_carlo_of_the_jump_system(heading: float | None) -> None:
+    """In the world frame, and in the track frame (anisotropic noise, the object heading
+    ``heading`` rad): the simulation then draws the track frame's noise turned into the world."""
     modes = imm.ModeSet()
     rng = np.random.default_rng(2)
     x = np.array(
@@ -67,13 +70,19 @@ def test_switching_moments_match_a_monte_carlo_of_the_jump_system() -> None:
     P = np.repeat(np.diag([R, 4e-6, 1e-6, R, 4e-6, 1e-6])[None], 3, 0)
     s = imm.ModeStates(x, P, np.array([0.1, 0.6, 0.3]))
     lead, steps, n = 2.0, 4, 40000
-    grid = imm.MomentGrid(modes, lead / steps)
-    moments = imm.propagate_moments(s, modes, np.array([lead]), np.zeros(2), grid)[0]
+    grid = imm.MomentGrid(modes, lead / steps, track=heading is not None)
+    moments = imm.propagate_moments(s, modes, np.array([lead]), np.zeros(2), grid, heading or 0.0)[
+        0
+    ]
     mean, second = moments[:2, 2], moments[:2, :2]
     cov = second - np.outer(mean, mean)
     # Simulate: mode chain with M(dt) at each step boundary, then that mode's linear model.
     dt = lead / steps
     F, Q = modes.models(dt)
+    if heading is not None:
+        T = imm.track_rotation(heading)
+        Q = T.T @ modes.models_batch(np.array([dt]), track=True)[1][0] @ T
+        assert not np.allclose(Q[1], modes.models(dt)[1][1])  # really anisotropic
     M = modes.transition(dt)
     mode = rng.choice(3, size=n, p=s.mu)
     states = np.array([rng.multivariate_normal(x[m], P[m]) for m in mode])

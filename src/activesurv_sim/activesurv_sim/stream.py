@@ -16,7 +16,7 @@ its state is parked far outside every camera's view (``in_workspace`` false).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -189,6 +189,7 @@ class ObjectStream:
         kinds: path kinds to draw from (default all of :data:`PATH_KINDS`).
         gap: s the table stays empty between two objects at least.
         model: the markers relative to the carriage.
+        position_error: the rig's table error map, as for :class:`XYTable` (None: exact).
     """
 
     def __init__(
@@ -201,6 +202,7 @@ class ObjectStream:
         speed: float = 0.02,
         acceleration: float = 0.02,
         model: ObjectModel | None = None,
+        position_error: Callable[[float, float], Array] | None = None,
     ) -> None:
         if not (math.isfinite(arrival_interval) and arrival_interval > 0.0 and gap >= 0.0):
             raise ConfigError('arrival_interval must be > 0 s and gap >= 0 s')
@@ -218,6 +220,7 @@ class ObjectStream:
         self._normal = n / np.linalg.norm(n)
         self.passes: list[ObjectPass] = []
         self._next_entry = first_entry
+        self.position_error = position_error
 
     def _extend(self, t: float) -> None:
         while not self.passes or self.passes[-1].entered <= t:
@@ -243,6 +246,8 @@ class ObjectStream:
         else:
             tau = t - p.entered
             xy, v = p.path.position(tau), p.path.velocity(tau)
+            if self.position_error is not None:  # where the table really is
+                xy = xy + self.position_error(float(xy[0]), float(xy[1]))
         moving = p is not None and 0.0 < t - p.entered < p.path.duration
         return self.model.at(xy, v, moving, p is not None)
 
@@ -259,6 +264,11 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
         raise ConfigError('side_offset and side_normal need 3 numbers each')
     model = ObjectModel(float(p['top_height']), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2]))
     speed, accel = float(p['speed']), float(p['acceleration'])
+    error = None
+    if p.get('rig_file'):
+        from activesurv_sim.rig import load_rig
+
+        error = load_rig(str(p['rig_file'])).table_offset
     if p['path_type'] == 'stream':
         return ObjectStream(
             int(p['stream_seed']),
@@ -268,13 +278,9 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
             speed=speed,
             acceleration=accel,
             model=model,
+            position_error=error,
         )
     path = named_path(
         str(p['path_type']), list(p['path_points']), speed, accel, str(p['csv_file'])
     )
-    error = None
-    if p.get('rig_file'):
-        from activesurv_sim.rig import load_rig
-
-        error = load_rig(str(p['rig_file'])).table_offset
     return XYTable(path, float(p['start_time']), model, error, bool(p.get('enters_at_start')))

@@ -56,6 +56,22 @@ def test_the_stream_is_one_object_at_a_time_and_seeded() -> None:
     assert np.allclose(s.top[:2], first.path.position(1.0))
 
 
+def test_a_stream_on_a_rig_has_the_tables_position_errors() -> None:
+    from activesurv_common.mount import CameraMount
+    from activesurv_sim.rig import nominal_rig, perturb_rig
+
+    mounts = {'cam1': CameraMount('cam1', [0.02, -0.5, 0.05], 1.5707963)}
+    rig = perturb_rig(nominal_rig(mounts, [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0]), 3)
+    exact = ObjectStream(7, first_entry=1.0)
+    real = ObjectStream(7, first_entry=1.0, position_error=rig.table_offset)
+    t = exact.pass_at(5.0).entered + 3.0  # type: ignore[union-attr]
+    xy = exact.state(t).top[:2]
+    off = real.state(t).top[:2] - xy
+    assert np.allclose(off, rig.table_offset(float(xy[0]), float(xy[1])))
+    assert 1e-7 < np.hypot(*off) < 2e-4  # Table I: 48 / 24 um
+    assert np.allclose(real.state(0.5).top[:2], PARKED)  # no object: parked, no error
+
+
 def test_bad_stream_settings_are_refused() -> None:
     with pytest.raises(ConfigError):
         ObjectStream(0, arrival_interval=0.0)

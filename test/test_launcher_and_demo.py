@@ -49,3 +49,27 @@ def test_launcher_stops_nodes_cleanly(tmp_path: Path) -> None:
         launcher.wait_alive(1.0)
     codes = launcher.stop()
     assert codes == {'/fusion': 0}  # SIGINT -> the node flushed and exited normally
+
+
+def test_a_ctrl_c_while_stopping_leaves_no_node_running(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    specs = [NodeSpec(f'fusion{i}', 'activesurv_fusion.fusion_node') for i in range(3)]
+    launcher = Launcher(specs, workdir=tmp_path)
+    launcher.start()
+    launcher.wait_alive(1.0)
+    last = launcher.processes['/fusion2']  # stopped first
+    real_stop = type(last).stop
+
+    def interrupted(self: object, timeout: float = 5.0) -> int | None:
+        if self is last:
+            raise KeyboardInterrupt  # Ctrl-C while the launcher waits for it
+        return real_stop(self, timeout)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(type(last), 'stop', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        launcher.stop()
+    monkeypatch.undo()
+    for proc in launcher.processes.values():
+        proc.process.wait(10)  # every node is gone, the interrupted one too
+        assert not proc.alive()

@@ -540,6 +540,9 @@ def main(argv: list[str] | None = None) -> int:
     except (BringupError, OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # a second Ctrl-C while stopping: the nodes were still stopped
+        print(f'activesurv {args.command}: interrupted', file=sys.stderr)
+        return 130
     return 0
 
 

@@ -8,6 +8,7 @@ so it needs no console script on PATH and inherits this venv's ROS environment.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -241,9 +242,22 @@ class Launcher:
                 )
 
     def stop(self) -> dict[str, int | None]:
-        codes = {}
+        """Stop every node, last started first. A Ctrl-C while stopping (a user in a hurry)
+        does not leave the rest running: they are stopped quickly, then it is raised."""
+        codes: dict[str, int | None] = {}
+        hurry = False
         for fqn, proc in reversed(list(self.processes.items())):
-            codes[fqn] = proc.stop()
+            try:
+                codes[fqn] = proc.stop(0.5) if hurry else proc.stop()
+            except KeyboardInterrupt:
+                hurry = True
+                proc.stopped_on_purpose = True
+                proc.kill()
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.process.wait(2.0)
+                codes[fqn] = proc.returncode
+        if hurry:
+            raise KeyboardInterrupt
         return codes
 
     def cpu_seconds(self) -> dict[str, float]:

@@ -403,7 +403,7 @@ def paper_section(docs: Sequence[dict[str, Any]]) -> list[str]:
 
         rows.append(
             f'| {d.get("set")} | {d.get("system")} | {len(pos)}/{len(dem)} | {stats(pos, 3)} | '
-            f'{stats(ori, 3) if ori else "-"} | {d.get("calibration", "truth")} |'
+            f'{stats(ori, 3) if ori else "-"} | {Path(str(d.get("calibration", "truth"))).name} |'
         )
     if not rows:
         return []

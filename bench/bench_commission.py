@@ -7,6 +7,7 @@ in lockstep on each rig told the commissioned calibration, the nominal values, o
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import statistics
@@ -18,7 +19,7 @@ from typing import Any
 from activesurv_bringup.commission import commission_offline
 from activesurv_bringup.evaluation import summary
 from activesurv_bringup.rigs import RigChoice, nominal, resolve_calibration
-from activesurv_sim.rig import perturb_rig
+from activesurv_sim.rig import Rig, perturb_rig
 
 
 def _median(values: list[float]) -> float:
@@ -31,6 +32,7 @@ def run() -> dict[str, Any]:
     per: dict[str, list[float]] = {}
     runs: dict[str, dict[str, list[float]]] = {}
     seconds = []
+    pp_z: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, rigs + 1):
             rig = perturb_rig(nominal(), seed)
@@ -40,7 +42,14 @@ def run() -> dict[str, Any]:
             for cam in report['cameras'].values():
                 per.setdefault('reprojection_rms_px', []).append(cam['reprojection_rms_px'])
                 for key, value in cam['error'].items():
-                    per.setdefault(key, []).append(value)
+                    if key not in ('principal_point_x_px', 'principal_point_y_px'):  # signed
+                        per.setdefault(key, []).append(value)
+                # the procedure's own uncertainty, and whether the errors stay inside it
+                sx, sy = cam['std']['principal_point_px']
+                dx, dy = cam['error']['principal_point_x_px'], cam['error']['principal_point_y_px']
+                per.setdefault('principal_point_std_x_px', []).append(sx)
+                per.setdefault('principal_point_std_y_px', []).append(sy)
+                pp_z.extend([abs(dx) / sx, abs(dy) / sy])
             per.setdefault('overhead_table_mapping_m', []).append(
                 report['overhead']['error']['table_mapping_m']
             )
@@ -61,6 +70,12 @@ def run() -> dict[str, Any]:
                 r['estimates'].append(s['estimates'])
             print(f'  commission: rig {seed} of {rigs} ({seconds[-1]:.0f} s)', flush=True)
     out: dict[str, Any] = {'rigs': rigs, 'seconds_per_rig': round(statistics.median(seconds), 1)}
+    out['principal_point_within_3_std'] = round(sum(z <= 3.0 for z in pp_z) / len(pp_z), 3)
+    # what the views carry with nothing but the corner finder's scatter: rig 1 made ideal
+    _, ideal = commission_offline(ideal_rig(perturb_rig(nominal(), 1)))
+    stds = [c['std']['principal_point_px'] for c in ideal['cameras'].values()]
+    out['ideal_rig_principal_point_std_x_px'] = round(statistics.median(s[0] for s in stds), 3)
+    out['ideal_rig_principal_point_std_y_px'] = round(statistics.median(s[1] for s in stds), 3)
     for key, values in per.items():
         out[f'median_{key}'] = _median(values)
         out[f'max_{key}'] = round(max(values), 9)
@@ -71,6 +86,15 @@ def run() -> dict[str, Any]:
         )
         out[f'set_a_fast_{name}_estimates'] = sum(r['estimates'])
     return out
+
+
+def ideal_rig(rig: Rig) -> Rig:
+    """``rig`` with exact stages and table (Table I accuracy set to zero)."""
+    cameras = {
+        k: dataclasses.replace(c, linear_accuracy=0.0, rotary_accuracy=0.0)
+        for k, c in rig.cameras.items()
+    }
+    return dataclasses.replace(rig, table_accuracy=(0.0, 0.0), cameras=cameras)
 
 
 def _lockstep(out: Path, seed: int, choice: RigChoice) -> dict[str, Any]:

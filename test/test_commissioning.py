@@ -9,7 +9,13 @@ import pytest
 from activesurv_bringup.board_views import board_corners, collect_stations, simulated_look
 from activesurv_bringup.rigs import nominal
 from activesurv_common.mount import CameraMount
-from activesurv_imaging.commissioning import commission_camera, order_like, pixel_error
+from activesurv_imaging.commissioning import (
+    NoiseModel,
+    commission_camera,
+    commission_camera_noise,
+    order_like,
+    pixel_error,
+)
 from activesurv_imaging.errors import CalibrationError
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.rig import perturb_rig
@@ -25,7 +31,8 @@ def test_a_perturbed_camera_is_commissioned_from_nominal_values(seed: int, camer
         simulated_look(rig, camera_id, fixture, seed), n.camera, n.mount, fixture
     )
     assert sum(len(s.sightings) for s in stations) >= 30
-    model, mount, rms = commission_camera(n.camera, n.mount, stations, board_corners(fixture))
+    fit = commission_camera_noise(n.camera, n.mount, stations, board_corners(fixture))
+    model, mount, rms = fit.camera, fit.mount, fit.rms
     truth = rig.camera(camera_id)
     assert rms < 0.3
     assert abs(model.fx / truth.camera.fx - 1) < 1e-3  # nominal was up to 2 % off
@@ -39,6 +46,22 @@ def test_a_perturbed_camera_is_commissioned_from_nominal_values(seed: int, camer
     before = max(pixel_error(truth.camera, truth.true_mount(), n.camera, n.mount, s.joints)
                  for s in stations)  # fmt: skip
     assert before > 20.0
+    # the principal point is what the views carry least of; its error stays inside the
+    # uncertainty the fit reports
+    pp_error = np.abs(model.K[:2, 2] - truth.camera.K[:2, 2])
+    assert np.all(pp_error <= 4.0 * fit.std[2:4]), (pp_error, fit.std[2:4])
+    assert 0.01 < fit.noise.corner < 0.1  # the corner finder
+    assert fit.noise.sighting > fit.noise.corner  # the table's and stages' accuracy
+
+
+def test_the_noise_model_splits_corner_scatter_from_whole_sighting_shifts() -> None:
+    rng = np.random.default_rng(3)
+    residuals = [rng.normal(0.0, 0.12, 2) + rng.normal(0.0, 0.03, (48, 2)) for _ in range(400)]
+    noise = NoiseModel.of(residuals)
+    assert noise.corner == pytest.approx(0.03, rel=0.05)
+    assert noise.sighting == pytest.approx(0.12, rel=0.1)
+    white = np.concatenate([noise.whiten(r) for r in residuals])
+    assert np.std(white) == pytest.approx(1.0, rel=0.05)
 
 
 def test_a_reversed_corner_order_is_put_right() -> None:

@@ -3,8 +3,9 @@
 The procedure is the one a lab runs (the graph's ``commission`` is to run it over topics): for
 each station (stage positions aimed, with the nominal mount, at a point of the table), the table
 first searches for the board along x until the camera finds it and centres it, then shows it at
-three depths and three lateral offsets. Only the rendering knows the rig's truth; the procedure
-itself works from nominal values and what the camera sees.
+three depths and three lateral offsets (the middle and either side of the frame: how the
+board's image changes across the frame is what tells the principal point). Only the rendering
+knows the rig's truth; the procedure itself works from nominal values and what the camera sees.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ def collect_stations(
     aims: tuple[float, ...] = (0.06, 0.136, 0.212, 0.288, 0.364, 0.44),
     depths: tuple[float, float, float] = (0.02, 0.10, 0.18),
     max_yaw: float = 0.9,
+    laterals: tuple[float, ...] = (-0.012, 0.0, 0.012),
 ) -> list[Station]:
     """The stations of one camera: search, centre, then nine board positions each.
 
@@ -62,6 +64,8 @@ def collect_stations(
             corners it found or None.
         camera, mount: the nominal values (the procedure's only knowledge).
         fixture: the board on the carriage.
+        laterals: the board's shifts along x about the centred place (m); +-12 mm puts it
+            against either side of the frame at the middle depth.
     """
     board = board_corners(fixture)
     stations = []
@@ -93,7 +97,7 @@ def collect_stations(
             Tc = T.inverse()
             for ty in depths:
                 xa = on_axis(ty)[0] + shift
-                for lateral in (-0.006, 0.0, 0.006):
+                for lateral in laterals:
                     tx = xa + lateral
                     if not 0.0 <= tx <= 0.5:
                         continue

@@ -41,7 +41,7 @@ from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import (
     BoardSighting,
     c1_offset,
-    commission_camera,
+    commission_camera_noise,
     order_like,
     pixel_error,
 )
@@ -265,9 +265,19 @@ def commission_dynamic(
     """
     stations = collect_stations(look, start, nominal_mount, fixture)
     board = board_corners(fixture)
-    model, mount, rms = commission_camera(start, nominal_mount, stations, board)
+    fit = commission_camera_noise(start, nominal_mount, stations, board)
+    model, mount = fit.camera, fit.mount
     report: dict[str, Any] = {
-        'reprojection_rms_px': rms,
+        'reprojection_rms_px': fit.rms,
+        'corner_noise_px': fit.noise.corner,
+        'sighting_noise_px': fit.noise.sighting,
+        # one standard deviation, from the noise model (what the views carry)
+        'std': {
+            'focal_length_relative': float(fit.std[0] / model.fx),
+            'principal_point_px': [float(fit.std[2]), float(fit.std[3])],
+            'base_m': [float(v) for v in fit.std[5:8]],
+            'rotation_centre_offset_m': [float(v) for v in fit.std[10:12]],
+        },
         'stations': len(stations),
         'sightings': sum(len(s.sightings) for s in stations),
     }
@@ -276,7 +286,11 @@ def commission_dynamic(
     pairs = []
     for st in middle:
         T_cam = mount.pose_from_joints(st.joints).inverse()
-        for sighting in st.sightings[::3]:
+        centre = np.array([model.cx, model.cy])
+        centred = sorted(
+            st.sightings, key=lambda s: float(np.linalg.norm(s.corners.mean(axis=0) - centre))
+        )
+        for sighting in centred[:3]:  # the turn moves the image by ~100 px: keep it whole
             T = sighting.T_world_board
             x, y = float(T.t[0] - fixture.offset[0]), float(T.t[1] - fixture.offset[1])
             turned = st.joints.copy()
@@ -367,6 +381,8 @@ def errors_against(
     return {
         'focal_length_relative': float(abs(model.fx / t.camera.fx - 1.0)),
         'principal_point_px': float(np.max(np.abs(model.K[:2, 2] - t.camera.K[:2, 2]))),
+        'principal_point_x_px': float(model.cx - t.camera.cx),  # signed
+        'principal_point_y_px': float(model.cy - t.camera.cy),
         'k1': float(abs(model.dist[0] - t.camera.dist[0])),
         'base_m': float(np.max(np.abs(mount.base - t.mount.base))),
         'rotation_centre_offset_m': float(np.max(np.abs(mount.offset - t.mount.offset))),

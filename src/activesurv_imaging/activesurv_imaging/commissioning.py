@@ -15,14 +15,18 @@ at one station are one non-planar view in world coordinates, so:
 3. **The rotation centre by eq. C1** (the paper's Appendix C), as a check: the board's position
    in the camera frame before and after turning the rotary stage, with the board fixed.
 
-A narrow lens cannot tell its principal point from a small turn of the camera (they move the
-image alike to within (x/z)^2 ~ 0.4 %); the mount fit absorbs what intrinsics leave, and the
-pair predicts rays in the world as well as the truth does (README, "Commissioning").
+A narrow lens can tell its principal point from a small turn of the camera only by how the
+board's image changes across the frame (the two move it alike to within (x/z)^2 ~ 0.4 %): the
+refinement weights each sighting's shape by the corner finder's scatter and its place by the
+table's and stages' accuracy (:class:`NoiseModel`) so that this shape counts; what the views
+cannot carry the mount fit absorbs, and the pair predicts rays in the world as well as the
+truth does (README, "Commissioning").
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -132,13 +136,48 @@ def mount_from_poses(
     return _mount(nominal, fit.x)
 
 
-def _corners(stations: Sequence[Station], board: Array) -> list[tuple[Array, Array, Array]]:
-    out = []
-    for s in stations:
-        if s.sightings:
-            obj, img = _world_points(s, board)
-            out.append((np.asarray(s.joints, dtype=np.float64), obj, img))
-    return out
+def _sightings(stations: Sequence[Station], board: Array) -> list[tuple[Array, Array, Array]]:
+    """Every sighting as (joints, its corners in world coordinates (N, 3), pixels (N, 2))."""
+    return [
+        (
+            np.asarray(st.joints, dtype=np.float64),
+            board @ s.T_world_board.R.T + s.T_world_board.t,
+            np.asarray(s.corners, dtype=np.float64),
+        )
+        for st in stations
+        for s in st.sightings
+    ]
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """How far corners are off what the model predicts, split in two (px, per image axis).
+
+    Attributes:
+        corner: each corner on its own (the corner finder), after the sighting's mean is
+            taken out; the shape of the board's image.
+        sighting: the whole sighting moved together (where the table and the stages really
+            were, Table I accuracy): the mean of a sighting's residuals, less what ``corner``
+            puts there.
+    """
+
+    corner: float
+    sighting: float
+
+    @staticmethod
+    def of(residuals: Sequence[Array]) -> NoiseModel:
+        means = np.array([r.mean(axis=0) for r in residuals])
+        centred = np.concatenate([(r - r.mean(axis=0)).ravel() for r in residuals])
+        n = float(np.mean([len(r) for r in residuals]))
+        corner = max(float(np.sqrt(np.mean(centred**2))), 1e-3)
+        mean_var = float(np.mean(means**2)) - corner**2 / n
+        return NoiseModel(corner, max(math.sqrt(max(mean_var, 0.0)), 1e-3))
+
+    def whiten(self, r: Array) -> Array:
+        """One sighting's residuals (N, 2) as independent unit-variance terms."""
+        mu = r.mean(axis=0)
+        mean_std = math.sqrt(self.sighting**2 + self.corner**2 / len(r))
+        return np.concatenate([((r - mu) / self.corner).ravel(), mu / mean_std])
 
 
 def refine(
@@ -150,41 +189,96 @@ def refine(
     """Intrinsics (fx, fy, cx, cy, k1) and mount together, from every corner of every station
     through the stage kinematics (a bundle adjustment with the board's poses known).
 
+    Two passes: the plain least-squares fit, then the same fit weighted by what its residuals
+    show (:class:`NoiseModel`). Table and stage errors move a whole sighting by ~0.1 px while
+    the corner finder scatters single corners by ~0.03 px; weighting each sighting's shape
+    by the one and its place by the other is the maximum-likelihood fit, and it is what lets
+    the board's shape across the image (the only thing that tells the principal point from a
+    turn of the camera) count.
+
     Returns:
         (intrinsics, mount, RMS reprojection error in px).
 
     Raises:
         CalibrationError: with fewer than 3 stations or no convergence.
     """
+    r = refine_weighted(camera, mount, stations, board)
+    return r.camera, r.mount, r.rms
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """What :func:`refine_weighted` found.
+
+    Attributes:
+        camera, mount: the estimates.
+        rms: RMS reprojection error over every corner (px).
+        noise: the noise model of the weighted pass.
+        std: the estimates' standard deviations from that noise model (the inverse of the
+            weighted Gauss-Newton normal matrix): fx, fy, cx, cy (px), k1, base x, y, z (m),
+            yaw offset, pitch (rad), offset x, y (m).
+    """
+
+    camera: CameraModel
+    mount: CameraMount
+    rms: float
+    noise: NoiseModel
+    std: Array
+
+
+def refine_weighted(
+    camera: CameraModel,
+    mount: CameraMount,
+    stations: Sequence[Station],
+    board: Array,
+) -> Refinement:
+    """:func:`refine`, with the noise model of its second pass and the uncertainty of what
+    it found."""
     from scipy.optimize import least_squares
 
-    data = _corners(stations, board)
-    if len(data) < 3:
-        raise CalibrationError(f'{len(data)} stations saw the board; need >= 3')
+    if sum(1 for s in stations if s.sightings) < 3:
+        raise CalibrationError(
+            f'{sum(1 for s in stations if s.sightings)} stations saw the board; need >= 3'
+        )
+    data = _sightings(stations, board)
 
     def model_of(x: Array) -> CameraModel:
         K = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
         dist = np.array([x[4], 0.0, 0.0, 0.0, 0.0])
         return CameraModel(camera.width, camera.height, K, dist, camera.name)
 
-    def residuals(x: Array) -> Array:
+    def raw(x: Array) -> list[Array]:
         cam, m = model_of(x[:5]), _mount(mount, x[5:])
         out = []
         for q, obj, img in data:
             T = m.pose_from_joints(q)
-            pc = (obj - T.t) @ T.R
-            out.append((cam.project(pc) - img).ravel())
-        return np.concatenate(out)
+            out.append(cam.project((obj - T.t) @ T.R) - img)
+        return out
+
+    def fit(residuals: Callable[[Array], Array], x0: Array) -> Array:
+        result = least_squares(
+            residuals, x0, x_scale=scale, method='lm', xtol=1e-10, ftol=1e-10, max_nfev=2000
+        )
+        if not result.success:
+            raise CalibrationError(f'the refinement did not converge: {result.message}')
+        return np.asarray(result.x, dtype=np.float64)
 
     x0 = np.r_[camera.fx, camera.fy, camera.cx, camera.cy, camera.dist[0], _mount_vector(mount)]
     scale = np.r_[10.0, 10.0, 1.0, 1.0, 0.01, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]
-    fit = least_squares(
-        residuals, x0, x_scale=scale, method='lm', xtol=1e-10, ftol=1e-10, max_nfev=2000
+    x1 = fit(lambda x: np.concatenate([r.ravel() for r in raw(x)]), x0)
+    noise = NoiseModel.of(raw(x1))
+
+    def whitened(x: Array) -> Array:
+        return np.concatenate([noise.whiten(r) for r in raw(x)])
+
+    x2 = fit(whitened, x1)
+    rms = float(np.sqrt(np.mean(np.concatenate([r.ravel() for r in raw(x2)]) ** 2) * 2))
+    steps = np.diag(scale * 1e-4)  # central differences: the Jacobian at the solution
+    jac = np.column_stack(
+        [(whitened(x2 + h) - whitened(x2 - h)) / (2.0 * h[i]) for i, h in enumerate(steps)]
     )
-    if not fit.success:
-        raise CalibrationError(f'the refinement did not converge: {fit.message}')
-    rms = float(np.sqrt(np.mean(fit.fun.reshape(-1, 2) ** 2) * 2))
-    return model_of(fit.x[:5]), _mount(mount, fit.x[5:]), rms
+    std = np.sqrt(np.clip(np.diag(np.linalg.inv(jac.T @ jac)), 0.0, None))
+    return Refinement(model_of(x2[:5]), _mount(mount, x2[5:]), rms, noise, std)
 
 
 def commission_camera(
@@ -199,6 +293,17 @@ def commission_camera(
     Returns:
         (intrinsics, mount, RMS reprojection error in px).
     """
+    r = commission_camera_noise(nominal_camera, nominal_mount, stations, board)
+    return r.camera, r.mount, r.rms
+
+
+def commission_camera_noise(
+    nominal_camera: CameraModel,
+    nominal_mount: CameraMount,
+    stations: Sequence[Station],
+    board: Array,
+) -> Refinement:
+    """:func:`commission_camera`, with the refinement's noise model and uncertainties."""
     poses, joints = [], []
     for s in stations:
         T = station_pose(s, nominal_camera, board)
@@ -206,7 +311,7 @@ def commission_camera(
             poses.append(T)
             joints.append(np.asarray(s.joints, dtype=np.float64))
     mount0 = mount_from_poses(nominal_mount, joints, poses)
-    return refine(nominal_camera, mount0, stations, board)
+    return refine_weighted(nominal_camera, mount0, stations, board)
 
 
 def board_centre_in_camera(sighting: BoardSighting, camera: CameraModel, board: Array) -> Array:
@@ -271,13 +376,17 @@ def pixel_error(
 
 __all__ = [
     'BoardSighting',
+    'NoiseModel',
+    'Refinement',
     'Station',
     'board_centre_in_camera',
     'c1_offset',
     'commission_camera',
+    'commission_camera_noise',
     'mount_from_poses',
     'order_like',
     'pixel_error',
     'refine',
+    'refine_weighted',
     'station_pose',
 ]

@@ -8,6 +8,10 @@ the server advertises, ``runs`` times:
   ((n - 1) / span of the arrivals inside it; the worst run); ``image_hz_min`` over the cameras'
   preview streams and the overhead images (the demand frames ``<cam>/image_raw`` come once
   per demand and are not a stream);
+* ``overhead_hz_by_stamp``: the overhead images per second of their own stamps (sim time) over
+  the same window, and ``overhead_frames_dropped``: frames missing from the client's sequence
+  (a stamp gap over 1.5 intervals), both the worst run: the overhead camera is a 10 Hz camera,
+  so at an rtf a hair under 1 its wall rate is a hair under 10 with every frame shown;
 * ``demands_ok``: demands answered ``ok`` (worst run);
 * ``cores_with`` / ``cores_without``: CPU cores of the whole run (``cpu.json``) with the live
   view and its previews, and of the same run without ``--foxglove``; ``live_view_cores``: the
@@ -17,6 +21,7 @@ the server advertises, ``runs`` times:
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import os
 import socket
@@ -38,8 +43,9 @@ def _port() -> int:
         return int(s.getsockname()[1])
 
 
-async def _watch(port: int, deadline: float) -> dict[str, list[float]]:
-    """Arrival times (monotonic) of every message, per topic, until the server goes."""
+async def _watch(port: int, deadline: float) -> tuple[dict[str, list[float]], list[float]]:
+    """Arrival times (monotonic) of every message, per topic, and the overhead images'
+    header stamps (s), until the server goes."""
     import websockets
 
     while True:
@@ -54,6 +60,7 @@ async def _watch(port: int, deadline: float) -> dict[str, list[float]]:
             await asyncio.sleep(0.3)
     topics: dict[int, str] = {}
     arrivals: dict[str, list[float]] = {}
+    stamps: list[float] = []
     async with ws:
         while time.monotonic() < deadline:
             try:
@@ -73,7 +80,29 @@ async def _watch(port: int, deadline: float) -> dict[str, list[float]]:
             elif frame[0] == 1:
                 sid = struct.unpack_from('<I', frame, 1)[0]
                 arrivals.setdefault(topics[sid], []).append(time.monotonic())
-    return arrivals
+                if topics[sid] == '/overhead/image_raw':
+                    # op, subscription, log time, then the CDR message: its encapsulation
+                    # header and the header stamp (sec, nanosec) come first
+                    sec, nsec = struct.unpack_from('<iI', frame, 1 + 4 + 8 + 4)
+                    stamps.append(sec + 1e-9 * nsec)
+    return arrivals, stamps
+
+
+def _middle(values: list[float]) -> list[float]:
+    a = values[0] + 0.25 * (values[-1] - values[0])
+    b = values[0] + 0.75 * (values[-1] - values[0])
+    return [v for v in values if a <= v <= b]
+
+
+def _by_stamp(stamps: list[float]) -> tuple[float, int]:
+    """Frames per stamp second over the middle half, and frames missing from the sequence."""
+    inside = _middle(sorted(stamps))
+    if len(inside) < 3:
+        return 0.0, 0
+    gaps = [b - a for a, b in itertools.pairwise(inside)]
+    step = sorted(gaps)[len(gaps) // 2]
+    dropped = sum(round(g / step) - 1 for g in gaps if g > 1.5 * step)
+    return round((len(inside) - 1) / (inside[-1] - inside[0]), 2), dropped
 
 
 def _rates(arrivals: dict[str, list[float]]) -> dict[str, float]:
@@ -109,12 +138,14 @@ def _finish(proc: subprocess.Popen[str], out: Path) -> tuple[int, dict[str, Any]
 def run() -> dict[str, Any]:
     hz: dict[str, float] = {}
     oks, cores, view = [], [], []
+    by_stamp: list[tuple[float, int]] = []
     with tempfile.TemporaryDirectory(prefix='activesurv-bench-live-') as tmp:
         for i in range(RUNS):
             port, out = _port(), Path(tmp) / f'live{i}'
             proc = _experiment(out, port)
-            arrivals = asyncio.run(_watch(port, time.monotonic() + 300.0))
+            arrivals, stamps = asyncio.run(_watch(port, time.monotonic() + 300.0))
             ok, cpu = _finish(proc, out)
+            by_stamp.append(_by_stamp(stamps))
             for topic, rate in _rates(arrivals).items():
                 hz[topic] = min(rate, hz.get(topic, rate))
             oks.append(ok)
@@ -127,6 +158,8 @@ def run() -> dict[str, Any]:
         'runs': RUNS,
         'image_hz': hz,
         'image_hz_min': min(streams),
+        'overhead_hz_by_stamp': min(r for r, _ in by_stamp),
+        'overhead_frames_dropped': max(d for _, d in by_stamp),
         'demands_ok': f'{min(oks)}/10',
         'cores_with': round(max(cores), 3),
         'cores_without': plain['cores'],

@@ -72,6 +72,23 @@ def test_the_commissioned_values_match_the_rig(commissioned: tuple[Path, Path]) 
     assert before > 5e-3
 
 
+def test_the_report_shows_the_commissioning_quality(commissioned: tuple[Path, Path]) -> None:
+    from activesurv_bringup.report import calibration_section
+
+    _, out = commissioned
+    cam = json.loads((out / 'commission.json').read_text())['cameras']['cam3']
+    sx, sy = cam['std']['principal_point_px']
+    assert 0.0 < sx < 5.0  # what the views carry of it
+    assert 0.0 < sy < 10.0
+    assert 0.0 < cam['corner_noise_px'] < cam['sighting_noise_px'] < 0.5
+    lines = calibration_section([{'calibration': str(out), 'rig': 'r', 'rig_source': 's'}])
+    row = next(line for line in lines if line.startswith('| cam3 |'))
+    cells = [c.strip() for c in row.strip('|').split('|')]
+    assert cells[5] == f'{sx:.1f}, {sy:.1f}'
+    assert float(cells[4]) == pytest.approx(cam['error']['principal_point_px'], abs=1e-3)
+    assert next(line for line in lines if line.startswith('| cam1 |')).count('|') == 10
+
+
 def test_a_run_uses_the_calibration_directory(commissioned: tuple[Path, Path]) -> None:
     rig_file, out = commissioned
     choice = choose(rig_file, str(out), 0)

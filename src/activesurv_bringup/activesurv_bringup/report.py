@@ -441,21 +441,24 @@ def calibration_section(docs: Sequence[dict[str, Any]]) -> list[str]:
         doc = json.loads(path.read_text())
         lines += [
             '| camera | board views | reprojection RMS [px] | focal [%] | principal point [px] '
-            '| base [mm] | rotation-centre offset [mm] | through the model [px] |',
-            '|---|---|---|---|---|---|---|---|',
+            '| its std x, y [px] | base [mm] | rotation-centre offset [mm] '
+            '| through the model [px] |',
+            '|---|---|---|---|---|---|---|---|---|',
         ]
         for cid, c in sorted(doc.get('cameras', {}).items()):
             if not c.get('commissioned'):
-                lines.append(f'| {cid} | not commissioned (nominal values) | | | | | | |')
+                lines.append(f'| {cid} | not commissioned (nominal values) | | | | | | | |')
                 continue
             e = c.get('error') or {}
 
             def f(key: str, scale: float, e: dict[str, Any] = e) -> str:
                 return f'{scale * e[key]:.3f}' if key in e else '-'
 
+            pp_std = (c.get('std') or {}).get('principal_point_px')
+            std = '-' if pp_std is None else f'{pp_std[0]:.1f}, {pp_std[1]:.1f}'
             lines.append(
                 f'| {cid} | {c["sightings"]} | {c["reprojection_rms_px"]:.3f} | '
-                f'{f("focal_length_relative", 100.0)} | {f("principal_point_px", 1.0)} | '
+                f'{f("focal_length_relative", 100.0)} | {f("principal_point_px", 1.0)} | {std} | '
                 f'{f("base_m", 1e3)} | {f("rotation_centre_offset_m", 1e3)} | '
                 f'{f("pixel_error_px", 1.0)} |'
             )
@@ -466,7 +469,8 @@ def calibration_section(docs: Sequence[dict[str, Any]]) -> list[str]:
             '',
             f'Overhead camera: reprojection RMS {rms:.3f} px'
             + (f', image-to-table mapping within {1e3 * mapping:.3f} mm' if mapping else '')
-            + '. Errors are against the simulated rig (the README explains the principal point).',
+            + '. Errors are against the simulated rig (a live rig has only the standard '
+            'deviations of the fit; the README explains the principal point).',
             '',
         ]
     return lines

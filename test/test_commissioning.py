@@ -12,7 +12,6 @@ from activesurv_common.mount import CameraMount
 from activesurv_imaging.commissioning import (
     NoiseModel,
     commission_camera,
-    commission_camera_noise,
     order_like,
     pixel_error,
 )
@@ -31,7 +30,7 @@ def test_a_perturbed_camera_is_commissioned_from_nominal_values(seed: int, camer
         simulated_look(rig, camera_id, fixture, seed), n.camera, n.mount, fixture
     )
     assert sum(len(s.sightings) for s in stations) >= 30
-    fit = commission_camera_noise(n.camera, n.mount, stations, board_corners(fixture))
+    fit = commission_camera(n.camera, n.mount, stations, board_corners(fixture))
     model, mount, rms = fit.camera, fit.mount, fit.rms
     truth = rig.camera(camera_id)
     assert rms < 0.3

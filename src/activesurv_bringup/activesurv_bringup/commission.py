@@ -41,7 +41,7 @@ from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import (
     BoardSighting,
     c1_offset,
-    commission_camera_noise,
+    commission_camera,
     order_like,
     pixel_error,
 )
@@ -265,7 +265,7 @@ def commission_dynamic(
     """
     stations = collect_stations(look, start, nominal_mount, fixture)
     board = board_corners(fixture)
-    fit = commission_camera_noise(start, nominal_mount, stations, board)
+    fit = commission_camera(start, nominal_mount, stations, board)
     model, mount = fit.camera, fit.mount
     report: dict[str, Any] = {
         'reprojection_rms_px': fit.rms,

@@ -57,13 +57,6 @@ class Station:
     sightings: tuple[BoardSighting, ...]
 
 
-def _world_points(station: Station, board: Array) -> tuple[Array, Array]:
-    """All corners a station saw, in world coordinates (M, 3), and their pixels (M, 2)."""
-    obj = np.vstack([board @ s.T_world_board.R.T + s.T_world_board.t for s in station.sightings])
-    img = np.vstack([s.corners for s in station.sightings])
-    return obj, img
-
-
 def order_like(corners: Array, expected: Array) -> Array:
     """``corners`` in the order of ``expected`` (the board projected with the nominal camera):
     a board seen obliquely can fool the dark-square test of
@@ -180,35 +173,9 @@ class NoiseModel:
         return np.concatenate([((r - mu) / self.corner).ravel(), mu / mean_std])
 
 
-def refine(
-    camera: CameraModel,
-    mount: CameraMount,
-    stations: Sequence[Station],
-    board: Array,
-) -> tuple[CameraModel, CameraMount, float]:
-    """Intrinsics (fx, fy, cx, cy, k1) and mount together, from every corner of every station
-    through the stage kinematics (a bundle adjustment with the board's poses known).
-
-    Two passes: the plain least-squares fit, then the same fit weighted by what its residuals
-    show (:class:`NoiseModel`). Table and stage errors move a whole sighting by ~0.1 px while
-    the corner finder scatters single corners by ~0.03 px; weighting each sighting's shape
-    by the one and its place by the other is the maximum-likelihood fit, and it is what lets
-    the board's shape across the image (the only thing that tells the principal point from a
-    turn of the camera) count.
-
-    Returns:
-        (intrinsics, mount, RMS reprojection error in px).
-
-    Raises:
-        CalibrationError: with fewer than 3 stations or no convergence.
-    """
-    r = refine_weighted(camera, mount, stations, board)
-    return r.camera, r.mount, r.rms
-
-
 @dataclass(frozen=True)
 class Refinement:
-    """What :func:`refine_weighted` found.
+    """What :func:`refine` found.
 
     Attributes:
         camera, mount: the estimates.
@@ -226,20 +193,33 @@ class Refinement:
     std: Array
 
 
-def refine_weighted(
+def refine(
     camera: CameraModel,
     mount: CameraMount,
     stations: Sequence[Station],
     board: Array,
 ) -> Refinement:
-    """:func:`refine`, with the noise model of its second pass and the uncertainty of what
-    it found."""
+    """Intrinsics (fx, fy, cx, cy, k1) and mount together, from every corner of every station
+    through the stage kinematics (a bundle adjustment with the board's poses known).
+
+    Two passes: the plain least-squares fit, then the same fit weighted by what its residuals
+    show (:class:`NoiseModel`). Table and stage errors move a whole sighting by ~0.1 px while
+    the corner finder scatters single corners by ~0.03 px; weighting each sighting's shape
+    by the one and its place by the other is the maximum-likelihood fit, and it is what lets
+    the board's shape across the image (the only thing that tells the principal point from a
+    turn of the camera) count.
+
+    Returns:
+        the estimates, the RMS reprojection error, the noise model and the uncertainties.
+
+    Raises:
+        CalibrationError: with fewer than 3 stations or no convergence.
+    """
     from scipy.optimize import least_squares
 
-    if sum(1 for s in stations if s.sightings) < 3:
-        raise CalibrationError(
-            f'{sum(1 for s in stations if s.sightings)} stations saw the board; need >= 3'
-        )
+    seen = sum(1 for s in stations if s.sightings)
+    if seen < 3:
+        raise CalibrationError(f'{seen} stations saw the board; need >= 3')
     data = _sightings(stations, board)
 
     def model_of(x: Array) -> CameraModel:
@@ -286,24 +266,10 @@ def commission_camera(
     nominal_mount: CameraMount,
     stations: Sequence[Station],
     board: Array,
-) -> tuple[CameraModel, CameraMount, float]:
-    """The whole procedure for one camera: station poses by PnP with the nominal optics, a
-    first mount from them, then intrinsics and mount refined over every corner.
-
-    Returns:
-        (intrinsics, mount, RMS reprojection error in px).
-    """
-    r = commission_camera_noise(nominal_camera, nominal_mount, stations, board)
-    return r.camera, r.mount, r.rms
-
-
-def commission_camera_noise(
-    nominal_camera: CameraModel,
-    nominal_mount: CameraMount,
-    stations: Sequence[Station],
-    board: Array,
 ) -> Refinement:
-    """:func:`commission_camera`, with the refinement's noise model and uncertainties."""
+    """The whole procedure for one camera: station poses by PnP with the nominal optics, a
+    first mount from them, then intrinsics and mount refined over every corner (:func:`refine`).
+    """
     poses, joints = [], []
     for s in stations:
         T = station_pose(s, nominal_camera, board)
@@ -311,7 +277,7 @@ def commission_camera_noise(
             poses.append(T)
             joints.append(np.asarray(s.joints, dtype=np.float64))
     mount0 = mount_from_poses(nominal_mount, joints, poses)
-    return refine_weighted(nominal_camera, mount0, stations, board)
+    return refine(nominal_camera, mount0, stations, board)
 
 
 def board_centre_in_camera(sighting: BoardSighting, camera: CameraModel, board: Array) -> Array:
@@ -382,11 +348,9 @@ __all__ = [
     'board_centre_in_camera',
     'c1_offset',
     'commission_camera',
-    'commission_camera_noise',
     'mount_from_poses',
     'order_like',
     'pixel_error',
     'refine',
-    'refine_weighted',
     'station_pose',
 ]

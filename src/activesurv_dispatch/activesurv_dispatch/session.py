@@ -173,19 +173,25 @@ class Dispatcher:
         timeout = self.config.camera_timeout
         out = Outputs()
         changed = False
-        # Every stage silent at once, briefly: this node or its transport stalled (a busy
-        # process sees its timer before the states queued behind it), not every stage died.
-        # Dropping them all would leave the next demand without a camera; wait a little.
-        ages = [now - st for c, st in self.joint_stamp.items() if c not in self.down]
-        stalled = len(ages) > 1 and timeout < min(ages) < 3.0 * timeout
+        # Every stage (or every imager) silent at once, briefly: this node or that transport
+        # stalled (a busy process sees its timer before the messages queued behind it), not
+        # all of them died. Dropping them all would leave the next demand without a camera;
+        # wait a little. Each signal is judged on its own: stage states stalled together do
+        # not hide an imager whose heartbeat stopped while the others' go on.
+        stages_stalled = self._stalled(self.joint_stamp, now)
+        beats_stalled = self._stalled(self.beat_stamp, now)
         for cid, stamp in self.joint_stamp.items():
-            if stalled and cid not in self.down:
-                continue
             why = ''
-            if now - stamp > timeout:
+            if now - stamp > timeout and (cid in self.down or not stages_stalled):
                 why = f'no stage state for {timeout:g} s'
-            elif cid in self.beat_stamp and now - self.beat_stamp[cid] > timeout:
+            elif (
+                cid in self.beat_stamp
+                and now - self.beat_stamp[cid] > timeout
+                and (cid in self.down or not beats_stalled)
+            ):
                 why = f'no imager heartbeat for {timeout:g} s'
+            elif cid not in self.down and (stages_stalled or beats_stalled):
+                continue  # silent with the rest: not judged until the stall is over
             if why and cid not in self.down:
                 self.down[cid] = why
                 self.planner.exclude(cid)
@@ -204,6 +210,12 @@ class Dispatcher:
         if changed:
             out.merge(self._replan(now))
         return out
+
+    def _stalled(self, stamps: dict[str, float], now: float) -> bool:
+        """Whether every live camera's ``stamps`` went silent together, and not for long."""
+        timeout = self.config.camera_timeout
+        ages = [now - t for c, t in stamps.items() if c not in self.down]
+        return len(ages) > 1 and timeout < min(ages) < 3.0 * timeout
 
     def tick(self, now: float, serviced_until: float | None = None) -> Outputs:
         """Liveness, due capture requests, missed demands and serviced demands at ``now``.

@@ -81,3 +81,24 @@ def test_every_stage_silent_at_once_is_a_stall_not_every_camera_dead() -> None:
     # and a silence that lasts is a silence.
     d.tick(2.6)
     assert set(d.down) == set(away)
+
+
+def test_a_stage_stall_does_not_hide_an_imager_that_died() -> None:
+    d, away = _session()
+    for c in away:
+        d.on_beat(c, 0.0)
+    for c in away:  # every imager beats on but cam1's (killed at 0.1 s) ...
+        if c != 'cam1':
+            d.on_beat(c, 0.55)
+    # ... while every stage state is 0.6 s old (the stages' process busy): a stall of the
+    # stages, which drops none of them, but cam1's imager is silent alone: it is dropped.
+    d.tick(0.6)
+    assert set(d.down) == {'cam1'}
+    assert 'heartbeat' in d.down['cam1']
+    # Every imager silent at once is a stall of the imagers: nobody else is dropped.
+    d2, away2 = _session()
+    for c in away2:
+        d2.on_beat(c, 0.0)
+        d2.on_joints(c, away2[c], 0.55)
+    d2.tick(0.6)
+    assert not d2.down

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.evaluation import results_document
-from activesurv_bringup.experiment import load_experiment
-from activesurv_bringup.lockstep import run_lockstep
+from activesurv_bringup.experiments.evaluation import results_document
+from activesurv_bringup.experiments.experiment import load_experiment
+from activesurv_bringup.experiments.lockstep import run_lockstep
 from activesurv_common.mount import CameraMount
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import Target, camera_frames, ideal_pose, view_batch

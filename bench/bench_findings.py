@@ -14,15 +14,15 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.evaluation import recovery_demand
+from activesurv_bringup.experiments.evaluation import recovery_demand
 
 SYSTEMS = ('static', 'medium', 'fast')
 
 
 def _one(args: tuple[str, str, int]) -> list[float]:
-    from activesurv_bringup.experiment import load_experiment
-    from activesurv_bringup.lockstep import run_lockstep
-    from activesurv_bringup.rigs import choose
+    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.experiments.lockstep import run_lockstep
+    from activesurv_bringup.rig.choice import choose
 
     set_name, system, seed = args
     exp = load_experiment(set_name, system, seed, rig=choose(None, 'truth', seed))

@@ -23,16 +23,16 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.evaluation import recovery_demand
+from activesurv_bringup.experiments.evaluation import recovery_demand
 
 SEEDS = 20
 SYSTEMS = ('static', 'medium', 'fast')
 
 
 def _one(args: tuple[str, str, int]) -> dict[str, Any]:
-    from activesurv_bringup.evaluation import results_document
-    from activesurv_bringup.experiment import load_experiment
-    from activesurv_bringup.lockstep import run_lockstep
+    from activesurv_bringup.experiments.evaluation import results_document
+    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.experiments.lockstep import run_lockstep
 
     set_name, system, seed = args
     exp = load_experiment(set_name, system, seed)
@@ -43,7 +43,7 @@ def _one(args: tuple[str, str, int]) -> dict[str, Any]:
 
 
 def run() -> dict[str, Any]:
-    from activesurv_bringup.experiment import load_experiment
+    from activesurv_bringup.experiments.experiment import load_experiment
 
     for s in ('A', 'B'):  # warm the initial-pose cache once, not in every worker
         for system in SYSTEMS:
@@ -109,9 +109,9 @@ def run() -> dict[str, Any]:
     # Graph-mode latency, demand instant to fused estimate (simulated time), at the default
     # speed (rtf 0.5): at rtf 1 this shared 2-core machine cannot render the cameras in time.
     # bench_reliability.py measures it again under image-stream load.
-    from activesurv_bringup.graph import run_graph
-    from activesurv_bringup.options import RunOptions
-    from activesurv_bringup.report import load_run
+    from activesurv_bringup.experiments.graph import run_graph
+    from activesurv_bringup.experiments.options import RunOptions
+    from activesurv_bringup.experiments.report import load_run
 
     exp = load_experiment('A', 'fast', 7)
     with tempfile.TemporaryDirectory() as tmp:

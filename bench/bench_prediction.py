@@ -3,8 +3,9 @@ lines and parabolas, for the IMM predictor (the default) and the round-1 constan
 filter side by side; the cost of one update and a 10-point horizon; lockstep experiments of
 the fast system on manoeuvring paths with either predictor.
 
-Suite (:mod:`activesurv_bringup.prediction_suite`): per path kind 20 seeded paths, 30 Hz fixes
-with 0.5 mm noise, predictions 1, 2 and 4 s ahead from every third fix after 2 s of tracking.
+Suite (:mod:`activesurv_bringup.experiments.prediction_suite`): per path kind 20 seeded paths,
+30 Hz fixes with 0.5 mm noise, predictions 1, 2 and 4 s ahead from every third fix after 2 s
+of tracking.
 Set ``ACTIVESURV_PREDICTION_RUNS`` to use fewer paths (a quick look).
 """
 
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.prediction_suite import evaluate_suite, nees_band
+from activesurv_bringup.experiments.prediction_suite import evaluate_suite, nees_band
 from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
 from activesurv_prediction.predictor import make_predictor
 from activesurv_sim.paths import MANOEUVRES, SUITE_KINDS, manoeuvre_path, write_csv
@@ -76,7 +77,7 @@ def _experiments(seeds: int) -> dict[str, Any]:
     """Fast system, Set A cameras, lockstep, on the Set A parabola with a manoeuvre (each
     seed's perturbed rig, told its truth: the predictors are compared, not calibrations)."""
     from activesurv_bringup.cli import experiment
-    from activesurv_bringup.evaluation import summary
+    from activesurv_bringup.experiments.evaluation import summary
 
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix='activesurv-bench-pred-') as tmp:

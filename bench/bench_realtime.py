@@ -34,10 +34,10 @@ RUNS = int(os.environ.get('ACTIVESURV_BENCH_RUNS', '3'))
 def _run(
     rtf: float, tmp: Path, name: str, processes: str = 'containers'
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    from activesurv_bringup.experiment import load_experiment
-    from activesurv_bringup.graph import run_graph
-    from activesurv_bringup.options import RunOptions
-    from activesurv_bringup.report import load_run
+    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.experiments.graph import run_graph
+    from activesurv_bringup.experiments.options import RunOptions
+    from activesurv_bringup.experiments.report import load_run
 
     exp = load_experiment('A', 'fast', 7)
     run_graph(exp, tmp / name, RunOptions(rtf=rtf, processes=processes), progress=lambda _: None)
@@ -53,7 +53,7 @@ def breakdown(bag: Path) -> dict[str, float]:
     """Median ms from each demand instant to each step of its capture (see module doc)."""
     from collections import defaultdict
 
-    from activesurv_bringup.bagio import read_bag
+    from activesurv_recording.bagio import read_bag
 
     def stamp(h: Any) -> float:
         return float(h.stamp.sec) + 1e-9 * float(h.stamp.nanosec)

@@ -21,12 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiment import dds_profile_path, load_experiment
-from activesurv_bringup.graph import run_graph
-from activesurv_bringup.launcher import NodeSpec
-from activesurv_bringup.load_node import stream_topic
-from activesurv_bringup.options import RunOptions
-from activesurv_bringup.report import load_run
+from activesurv_bringup.experiments.experiment import load_experiment
+from activesurv_bringup.experiments.graph import run_graph
+from activesurv_bringup.experiments.options import RunOptions
+from activesurv_bringup.experiments.report import load_run
+from activesurv_bringup.files import dds_profile_path
+from activesurv_launch.launcher import NodeSpec
+from activesurv_recording.load_node import stream_topic
 
 CAMERAS = ['cam1', 'cam2', 'cam3', 'cam4']
 RTF = 0.5
@@ -47,12 +48,12 @@ def _loaded_run(
     load = [
         NodeSpec(
             'image_stream',
-            'activesurv_bringup.load_node',
+            'activesurv_recording.load_node',
             parameters={'role': 'stream', 'camera_ids': CAMERAS, 'rate': 30.0},
         ),
         NodeSpec(
             'image_count',
-            'activesurv_bringup.load_node',
+            'activesurv_recording.load_node',
             parameters={'role': 'count', 'camera_ids': CAMERAS, 'summary_file': str(summary_file)},
         ),
     ]

@@ -7,21 +7,20 @@ Every import statement of every package module (function-level ones included) is
 from __future__ import annotations
 
 import ast
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / 'src'
-PACKAGES = (
-    'activesurv_common',
-    'activesurv_sim',
-    'activesurv_imaging',
-    'activesurv_prediction',
-    'activesurv_dispatch',
-    'activesurv_fusion',
-    'activesurv_stages',
-    'activesurv_bringup',
+# Every Python ament package of the source tree (the interfaces are CMake).
+PACKAGES = tuple(
+    sorted(
+        p.parent.name
+        for p in SRC.glob('activesurv_*/setup.py')
+        if (p.parent / p.parent.name).is_dir()
+    )
 )
 # Which of our packages each package may import (besides itself and the interfaces).
 ALLOWED: dict[str, set[str]] = {
@@ -32,6 +31,14 @@ ALLOWED: dict[str, set[str]] = {
     'activesurv_dispatch': {'activesurv_common', 'activesurv_stages'},
     'activesurv_imaging': {'activesurv_common'},
     'activesurv_sim': {'activesurv_common', 'activesurv_stages'},
+    'activesurv_launch': {'activesurv_common'},
+    'activesurv_recording': {'activesurv_common'},
+    'activesurv_liveview': {
+        'activesurv_common',
+        'activesurv_recording',
+        'activesurv_dispatch',
+        'activesurv_stages',
+    },
     'activesurv_bringup': set(PACKAGES),
 }
 OPENCV_USERS = {'activesurv_sim', 'activesurv_imaging', 'activesurv_bringup'}
@@ -58,7 +65,7 @@ def is_ros_shell(package: str, path: Path) -> bool:
     """Modules allowed to touch rclpy and messages: nodes, conversions, common.ros, bringup."""
     rel = path.relative_to(SRC / package / package)
     return (
-        package == 'activesurv_bringup'
+        package in ('activesurv_bringup', 'activesurv_launch', 'activesurv_recording')
         or rel.parts[0] == 'ros'
         or path.stem.endswith('_node')
         or path.stem == 'conversions'
@@ -126,3 +133,130 @@ def test_every_node_uses_the_shared_entry_point_and_topics() -> None:
                     assert not any(
                         isinstance(a, ast.Constant) and isinstance(a.value, int) for a in call.args
                     ), f'{p.name}: a bare QoS depth at line {call.lineno}'
+
+
+# Third-party Python modules and the rosdep keys a package.xml names them by.
+ROSDEP = {
+    'numpy': 'python3-numpy',
+    'yaml': 'python3-yaml',
+    'cv2': 'python3-opencv',
+    'scipy': 'python3-scipy',
+    'matplotlib': 'python3-matplotlib',
+    'serial': 'python3-serial',
+}
+# rclpy's own packages come with it; pip-only libraries live in requirements.txt.
+IMPLIED = {'rclpy', 'ament_index_python'}
+
+
+def manifest_depends(package: str) -> set[str]:
+    text = (SRC / package / 'package.xml').read_text()
+    return set(re.findall(r'<(?:exec_)?depend>([^<]+)</(?:exec_)?depend>', text))
+
+
+def imported_depends(package: str) -> set[str]:
+    out: set[str] = set()
+    for path in modules(package):
+        for name in imports(path):
+            top = name.split('.')[0]
+            if top == package:
+                continue
+            if top.startswith('activesurv_') or top.endswith(('_msgs', '_interfaces')):
+                out.add(top)
+            elif top == 'rclpy':
+                out.add('rclpy')
+            elif top in ROSDEP:
+                out.add(ROSDEP[top])
+    return out
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_manifests_declare_exactly_what_the_code_imports(package: str) -> None:
+    declared = manifest_depends(package) - IMPLIED
+    used = imported_depends(package) - IMPLIED
+    assert not used - declared, f'{package}/package.xml lacks {sorted(used - declared)}'
+    assert not declared - used, f'{package}/package.xml declares unused {sorted(declared - used)}'
+
+
+def module_name(package: str, path: Path) -> str:
+    rel = path.relative_to(SRC / package).with_suffix('')
+    parts = rel.parts[:-1] if rel.name == '__init__' else rel.parts
+    return '.'.join(parts)
+
+
+def module_level_imports(path: Path, known: set[str]) -> set[str]:
+    """Our modules imported at module level (not in functions, not under TYPE_CHECKING)."""
+    out: set[str] = set()
+    for node in ast.parse(path.read_text()).body:
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module] + [f'{node.module}.{a.name}' for a in node.names]
+        out.update(n for n in names if n in known)
+    return out
+
+
+def test_no_import_circles() -> None:
+    graph: dict[str, set[str]] = {}
+    paths = {module_name(pkg, p): p for pkg in PACKAGES for p in modules(pkg)}
+    known = set(paths)
+    for name, path in paths.items():
+        graph[name] = module_level_imports(path, known) - {name}
+    # Tarjan-free: a depth-first search that reports the first back edge as a circle.
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(n: str) -> list[str] | None:
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph[n]):
+            if state.get(m) == 1:
+                return stack[stack.index(m) :] + [m]
+            if m not in state and (found := visit(m)):
+                return found
+        stack.pop()
+        state[n] = 2
+        return None
+
+    for n in sorted(graph):
+        if n not in state and (circle := visit(n)):
+            pytest.fail('import circle: ' + ' -> '.join(circle))
+
+
+def test_no_package_holds_over_a_quarter_of_the_source() -> None:
+    lines = {pkg: sum(len(p.read_text().splitlines()) for p in modules(pkg)) for pkg in PACKAGES}
+    total = sum(lines.values())
+    big = {pkg: n / total for pkg, n in lines.items() if n > total / 4}
+    assert not big, f'packages over a quarter of the source: {big}'
+
+
+def test_bringup_imports_its_own_modules_at_the_top() -> None:
+    """Function-level imports of bringup's own modules hide circles; only the CLI may defer
+    (it answers --help and refuses bad arguments before the heavy modules load)."""
+    pkg = 'activesurv_bringup'
+    bad = []
+    for path in modules(pkg):
+        if path.name == 'cli.py':
+            continue
+        tree = ast.parse(path.read_text())
+        top = set(map(id, tree.body))
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.ImportFrom)
+                and (node.module or '').startswith(pkg)
+                and id(node) not in top
+                and not _under_type_checking(tree, node)
+            ):
+                bad.append(f'{path.relative_to(SRC)}:{node.lineno} imports {node.module}')
+    assert not bad, '\n'.join(bad)
+
+
+def _under_type_checking(tree: ast.Module, node: ast.AST) -> bool:
+    for stmt in tree.body:
+        if (
+            isinstance(stmt, ast.If)
+            and 'TYPE_CHECKING' in ast.unparse(stmt.test)
+            and any(n is node for n in ast.walk(stmt))
+        ):
+            return True
+    return False

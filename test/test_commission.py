@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 import yaml
 
-from activesurv_bringup.commission import plane_mapping_error
-from activesurv_bringup.rigs import calibration_dir, choose, nominal
+from activesurv_bringup.rig.choice import choose
+from activesurv_bringup.rig.commission import plane_mapping_error
+from activesurv_bringup.rig.rigs import calibration_dir, nominal
 from activesurv_common.calibration import load_calibration
 from activesurv_sim.rig import perturb_rig, save_rig
 
@@ -73,7 +74,7 @@ def test_the_commissioned_values_match_the_rig(commissioned: tuple[Path, Path]) 
 
 
 def test_the_report_shows_the_commissioning_quality(commissioned: tuple[Path, Path]) -> None:
-    from activesurv_bringup.report import calibration_section
+    from activesurv_bringup.experiments.report import calibration_section
 
     _, out = commissioned
     cam = json.loads((out / 'commission.json').read_text())['cameras']['cam3']

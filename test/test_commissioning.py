@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from activesurv_bringup.board_views import board_corners, collect_stations, simulated_look
-from activesurv_bringup.rigs import nominal
+from activesurv_bringup.rig.board_views import board_corners, collect_stations, simulated_look
+from activesurv_bringup.rig.rigs import nominal
 from activesurv_common.mount import CameraMount
 from activesurv_imaging.commissioning import (
     NoiseModel,

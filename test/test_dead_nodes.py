@@ -47,9 +47,9 @@ def test_killed_nodes_are_noticed_and_rejoin(tmp_path: Path) -> None:
 
     # The dispatcher's diagnostics (published at once when a camera goes down or comes back)
     # say when each camera was dropped and that it rejoined.
-    from activesurv_bringup.bagio import read_bag
     from activesurv_common.ros.conversions import time_to_sec
     from activesurv_common.ros.diagnostics import values_of
+    from activesurv_recording.bagio import read_bag
 
     history = []
     for m in read_bag(out / 'bag', {'/diagnostics'}):

@@ -52,7 +52,7 @@ def test_frames_node_publishes_the_tree(
 ) -> None:
     from tf2_msgs.msg import TFMessage
 
-    from activesurv_bringup.frames_node import FramesNode
+    from activesurv_liveview.frames_node import FramesNode
 
     node = FramesNode(parameter_overrides=[Parameter('overhead_pose', value=OVERHEAD)])
     peer = rclpy_context.create_node('frames_test_peer')

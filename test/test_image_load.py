@@ -15,7 +15,7 @@ from rclpy.serialization import serialize_message
 def test_cdr_header_reads_stamp_and_frame_id() -> None:
     from sensor_msgs.msg import Image
 
-    from activesurv_bringup.load_node import cdr_header
+    from activesurv_recording.load_node import cdr_header
 
     msg = Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(18))
     msg.header.stamp.sec = 1795236220
@@ -32,7 +32,7 @@ def test_cdr_header_reads_stamp_and_frame_id() -> None:
 def test_streams_are_counted(
     raw: bool, rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
-    from activesurv_bringup.load_node import ImageLoadNode
+    from activesurv_recording.load_node import ImageLoadNode
 
     common = [Parameter('camera_ids', value=['cam1', 'cam2']), Parameter('rate', value=40.0)]
     small = [Parameter('width', value=64), Parameter('height', value=48)]
@@ -64,7 +64,7 @@ def test_streams_are_counted(
 def test_bad_role_is_refused(rclpy_context: Any) -> None:
     from rclpy.exceptions import InvalidParameterValueException
 
-    from activesurv_bringup.load_node import ImageLoadNode
+    from activesurv_recording.load_node import ImageLoadNode
 
     with pytest.raises(InvalidParameterValueException, match='role'):
         ImageLoadNode(parameter_overrides=[Parameter('role', value='sink')])
@@ -74,7 +74,7 @@ def test_shipped_dds_profile_is_found_and_bad_names_are_refused() -> None:
     import xml.etree.ElementTree as ET
 
     from activesurv_bringup.errors import ConfigError
-    from activesurv_bringup.experiment import dds_profile_path
+    from activesurv_bringup.files import dds_profile_path
 
     path = dds_profile_path('large-images')
     root = ET.parse(path).getroot()
@@ -96,11 +96,11 @@ def test_large_images_profile_delivers_full_frames(tmp_path: Path) -> None:
     import sys
     import time
 
-    from activesurv_bringup.experiment import dds_profile_path
+    from activesurv_bringup.files import dds_profile_path
 
     env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(dds_profile_path('large-images')))
     summary = tmp_path / 'count.json'
-    base = [sys.executable, '-m', 'activesurv_bringup.load_node', '--ros-args']
+    base = [sys.executable, '-m', 'activesurv_recording.load_node', '--ros-args']
     cams = ['-p', 'camera_ids:=[cam7,cam8]']
     counter = subprocess.Popen(
         [

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from activesurv_bringup.rigs import nominal
+from activesurv_bringup.rig.rigs import nominal
 from activesurv_common.calibration import load_calibration
 from activesurv_sim.rig import load_rig, perturb_rig, save_rig
 

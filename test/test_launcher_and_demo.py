@@ -9,7 +9,12 @@ from pathlib import Path
 import pytest
 
 from activesurv_bringup.errors import NodeDiedError
-from activesurv_bringup.launcher import Launcher, NodeSpec, node_command, write_params_file
+from activesurv_launch.launcher import (
+    Launcher,
+    NodeSpec,
+    node_command,
+    write_params_file,
+)
 
 pytestmark = pytest.mark.graph
 

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 from rclpy.serialization import deserialize_message
 
-from activesurv_bringup.live import LiveFilter
+from activesurv_liveview.live import LiveFilter
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
@@ -145,7 +145,7 @@ def test_image_thinning_and_topic_selection() -> None:
 def test_the_foxglove_layout_shows_what_the_live_view_serves() -> None:
     import re
 
-    from activesurv_bringup.experiment import config_path
+    from activesurv_bringup.files import config_path
 
     layout = json.loads((config_path().parent / 'foxglove_layout.json').read_text())
     panels = layout['configById']
@@ -167,7 +167,7 @@ def test_the_foxglove_layout_shows_what_the_live_view_serves() -> None:
 
 
 def test_latched_messages_reach_late_subscribers() -> None:
-    from activesurv_bringup.live import LatchedCache
+    from activesurv_liveview.live import LatchedCache
 
     cache = LatchedCache()
     cache.latch('/tf_static', 1)

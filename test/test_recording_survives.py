@@ -20,9 +20,9 @@ from typing import Any
 
 import pytest
 
-from activesurv_bringup.bagio import read_bag
 from activesurv_bringup.errors import BagError
-from activesurv_bringup.salvage import needs_reindex, reindex, scan_mcap
+from activesurv_recording.bagio import read_bag
+from activesurv_recording.salvage import needs_reindex, reindex, scan_mcap
 
 BIN = Path(sys.executable).parent
 RATE = 50.0

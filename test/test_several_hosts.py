@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from activesurv_bringup.netns import unavailable_reason
+from activesurv_launch.netns import unavailable_reason
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 

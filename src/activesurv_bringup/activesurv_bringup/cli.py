@@ -1,6 +1,10 @@
 """The ``activesurv`` command: experiments, reports, replay, commissioning tools, and the demo.
 
-::
+Every argument is checked (:mod:`activesurv_bringup.arguments`) before any long step. The
+modules that run a command (rclpy, OpenCV, matplotlib behind them) are imported in the function
+that needs them, so ``--help``, ``--version`` and a refused argument answer at once.
+
+Commands:
 
     activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
         [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
@@ -34,10 +38,20 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from activesurv_bringup.errors import BringupError, ConfigError
-from activesurv_bringup.options import PROCESSES, RunOptions, new_output_dir, timestamped_dir
+from activesurv_bringup import __version__, arguments
+from activesurv_bringup.errors import USER_ERRORS, ConfigError
+from activesurv_bringup.experiments.options import PROCESSES, RunOptions
+from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
 
 SYSTEMS = ('static', 'medium', 'fast')
+DEFAULT_SEED = 1
+DEFAULT_RIG_SEED = 1
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
+    """The usage text as written, and every flag's default in its help."""
+
+
 DDS_PROFILE_HELP = (
     'Fast DDS XML profile for every node of a graph run: large-images (shipped; camera-sized '
     'messages over shared memory without loss) or a path'
@@ -48,17 +62,25 @@ def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='activesurv',
         description='Active-vision multi-camera surveillance (ROS 2 Jazzy).',
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog=__doc__,
+        formatter_class=_Formatter,
+        epilog=__doc__.split('Commands:', 1)[1],
     )
-    sub = parser.add_subparsers(dest='command', required=True)
+    parser.add_argument('--version', action='version', version=f'activesurv {__version__}')
+    sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
-    exp = sub.add_parser('experiment', help="run one of the paper's experiments")
-    exp.add_argument('--set', dest='set_name', required=True, choices=('A', 'B'))
-    exp.add_argument('--system', required=True, choices=SYSTEMS)
+    exp = _sub(sub, 'experiment', help="run one of the paper's experiments")
+    exp.add_argument(
+        '--set', dest='set_name', required=True, choices=('A', 'B'), help="the paper's set"
+    )
+    exp.add_argument('--system', required=True, choices=SYSTEMS, help='camera motion class')
     exp.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
-    exp.add_argument('--seed', type=int, default=0)
-    exp.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
+    _add_seed(exp)
+    exp.add_argument(
+        '--mode',
+        choices=('graph', 'lockstep'),
+        default='graph',
+        help='graph: the node graph over DDS; lockstep: the same cores in one loop',
+    )
     exp.add_argument('--trajectory', help='CSV t,x,y replacing the object path')
     exp.add_argument(
         '--predictor',
@@ -106,13 +128,13 @@ def _build_parser() -> argparse.ArgumentParser:
         help='graph mode with every node in this process (one executor)',
     )
 
-    sv = sub.add_parser(
-        'surveil', help='continuous surveillance: objects one after another, until stopped'
+    sv = _sub(
+        sub, 'surveil', help='continuous surveillance: objects one after another, until stopped'
     )
     sv.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     sv.add_argument('--duration', type=float, default=None, help='simulated s (default: SIGINT)')
     sv.add_argument('--rtf', type=float, default=1.0, help='simulated s per wall s')
-    sv.add_argument('--seed', type=int, default=1, help='seeds the paths and image noise')
+    _add_seed(sv)
     sv.add_argument(
         '--arrival-interval', type=float, default=30.0, help='s from one entry to the next'
     )
@@ -130,8 +152,10 @@ def _build_parser() -> argparse.ArgumentParser:
     sv.add_argument(
         '--max-bag-duration', type=float, default=0.0, help='split the bag every S s (0: never)'
     )
-    sv.add_argument('--system', choices=SYSTEMS, default='fast')
-    sv.add_argument('--processes', choices=PROCESSES, default='containers')
+    sv.add_argument('--system', choices=SYSTEMS, default='fast', help='camera motion class')
+    sv.add_argument(
+        '--processes', choices=PROCESSES, default='containers', help='nodes per process'
+    )
     sv.add_argument(
         '--image-rate', type=float, default=2.0, help='Hz of overhead images in the bag'
     )
@@ -139,31 +163,44 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_foxglove(sv)
     _add_rig(sv)
 
-    rpl = sub.add_parser('replay', help='re-run imaging and fusion on a recorded run')
+    rpl = _sub(sub, 'replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
     rpl.add_argument('--rtf', type=float, default=1.0, help='bag s per wall s')
     _add_foxglove(rpl)
 
-    rep = sub.add_parser('report', help='results.json, plots and report from recorded runs')
+    rep = _sub(sub, 'report', help='plots and report.md from recorded runs')
     rep.add_argument('path', type=Path, help='a run directory, a bag, or a directory of runs')
+    rep.add_argument(
+        '--out',
+        type=Path,
+        default=None,
+        help='where report.md and the plots go (default: next to the runs; results.json of '
+        'the runs are never rewritten)',
+    )
 
-    demo = sub.add_parser('demo', help='the main job: all six experiments and the report')
+    demo = _sub(sub, 'demo', help='the main job: all six experiments and the report')
     demo.add_argument(
         '--out',
         type=Path,
         default=None,
         help='output directory (new or empty); default: a new runs/demo_<date-time>',
     )
-    demo.add_argument('--seed', type=int, default=1)
-    demo.add_argument('--mode', choices=('graph', 'lockstep'), default='graph')
-    demo.add_argument('--rtf', type=float, default=1.0)
-    demo.add_argument('--processes', choices=PROCESSES, default='containers')
+    _add_seed(demo)
+    demo.add_argument(
+        '--mode', choices=('graph', 'lockstep'), default='graph', help='graph or lockstep'
+    )
+    demo.add_argument('--rtf', type=float, default=1.0, help='simulated s per wall s')
+    demo.add_argument(
+        '--processes', choices=PROCESSES, default='containers', help='nodes per process'
+    )
     demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     _add_rig(demo)
 
-    com = sub.add_parser(
-        'commission', help='calibrate a rig through the node graph (cameras, mounts, overhead)'
+    com = _sub(
+        sub,
+        'commission',
+        help='calibrate a rig through the node graph (cameras, mounts, overhead)',
     )
     com.add_argument('--rig', type=Path, default=None, help='rig YAML to simulate')
     com.add_argument('--out', type=Path, required=True, help='calibration directory (new)')
@@ -176,8 +213,10 @@ def _build_parser() -> argparse.ArgumentParser:
         '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
     )
 
-    lab = sub.add_parser(
-        'lab', help='an emulated lab (serial controllers, bridges, cameras) for commission --live'
+    lab = _sub(
+        sub,
+        'lab',
+        help='an emulated lab (serial controllers, bridges, cameras) for commission --live',
     )
     lab.add_argument('--rig', type=Path, required=True, help='rig YAML the cameras simulate')
     lab.add_argument('--out', type=Path, required=True, help='directory for ports, logs (new)')
@@ -185,19 +224,21 @@ def _build_parser() -> argparse.ArgumentParser:
         '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
     )
 
-    rig = sub.add_parser('rig', help='rig files: the simulated hardware (nominal, perturb)')
-    from activesurv_bringup.rigs import add_arguments as add_rig_arguments
+    rig = _sub(sub, 'rig', help='rig files: the simulated hardware (nominal, perturb)')
+    from activesurv_bringup.rig.rigs import add_arguments as add_rig_arguments
 
     add_rig_arguments(rig.add_subparsers(dest='rig_command', required=True))
 
-    bag = sub.add_parser('bag', help='bag tools (reindex a bag whose recorder was killed)')
+    bag = _sub(sub, 'bag', help='bag tools (reindex a bag whose recorder was killed)')
     bag_sub = bag.add_subparsers(dest='bag_command', required=True)
-    rix = bag_sub.add_parser(
-        'reindex', help='rebuild index and metadata.yaml; the original goes to BAG.damaged'
+    rix = _sub(
+        bag_sub,
+        'reindex',
+        help='rebuild index and metadata.yaml; the original goes to BAG.damaged',
     )
-    rix.add_argument('bag', type=Path)
+    rix.add_argument('bag', type=Path, help='the bag directory')
 
-    stages = sub.add_parser('stages', help='commissioning of stage controllers (probe, move)')
+    stages = _sub(sub, 'stages', help='commissioning of stage controllers (probe, move)')
     from activesurv_stages.cli import add_arguments
 
     add_arguments(stages.add_subparsers(dest='stages_command', required=True))
@@ -216,19 +257,42 @@ def _add_foxglove(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _sub(sub: Any, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """A sub-command whose help shows every flag's default."""
+    parser: argparse.ArgumentParser = sub.add_parser(name, formatter_class=_Formatter, **kwargs)
+    return parser
+
+
+def _add_seed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        '--seed',
+        type=int,
+        default=DEFAULT_SEED,
+        help="seeds the run (paths, image noise); the rig is --rig-seed's",
+    )
+
+
 def _add_rig(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--rig',
         type=Path,
         default=None,
-        help='rig YAML: the simulated hardware (default: the nominal rig perturbed with --seed)',
+        help='rig YAML: the simulated hardware (default: the nominal rig perturbed with '
+        '--rig-seed)',
+    )
+    parser.add_argument(
+        '--rig-seed',
+        type=int,
+        default=DEFAULT_RIG_SEED,
+        help='which perturbed rig to simulate when --rig is not given (independent of --seed)',
     )
     parser.add_argument(
         '--calibration',
         default=None,
         metavar='{CALDIR,nominal,truth}',
         help='what the system is told about the rig: a calibration directory, the nominal '
-        'values, or the rig itself (default: truth)',
+        'values, or the rig itself (default: the rig commissioned once, cached per rig in '
+        f'{cache_dir() / "calibrations"})',
     )
 
 
@@ -238,9 +302,9 @@ def run_options(args: argparse.Namespace) -> RunOptions:
     Raises:
         ConfigError: for a malformed fault, kill or profile, or options that do not mix.
     """
-    from activesurv_bringup.experiment import dds_profile_path
-    from activesurv_bringup.faults import parse_fault, parse_kill
-    from activesurv_bringup.graph import live_view_spec
+    from activesurv_bringup.experiments.faults import parse_fault, parse_kill
+    from activesurv_bringup.files import dds_profile_path
+    from activesurv_bringup.specs import live_view_spec
 
     profile = getattr(args, 'dds_profile', None)
     port = getattr(args, 'foxglove', None)
@@ -262,7 +326,7 @@ def experiment(
     set_name: str,
     system: str,
     out: Path,
-    seed: int = 0,
+    seed: int = DEFAULT_SEED,
     mode: str = 'graph',
     trajectory: str | None = None,
     expect: str | None = None,
@@ -270,32 +334,33 @@ def experiment(
     predictor: str = 'imm',
     rig: Path | None = None,
     calibration: str | None = None,
+    rig_seed: int = DEFAULT_RIG_SEED,
 ) -> dict[str, Any]:
     """Run one experiment into ``out`` (new or empty); returns its results document.
 
     Raises:
         ConfigError: for a bad configuration; NodeDiedError if a node of the graph dies.
     """
-    from activesurv_bringup.evaluation import results_document, write_results
-    from activesurv_bringup.experiment import load_experiment
+    from activesurv_bringup.experiments.evaluation import results_document, write_results
+    from activesurv_bringup.experiments.experiment import load_experiment
 
     opts = options or RunOptions()
     if opts.kills and mode != 'graph':
         raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
-    from activesurv_bringup.rigs import choose
+    from activesurv_bringup.rig.choice import choose
 
     def say(text: str) -> None:
         print(f'  Set {set_name} {system}: {text}', flush=True)
 
     new_output_dir(out)  # refused before anything is commissioned or run
-    choice = choose(rig, calibration, seed, out.parent, say)
+    choice = choose(rig, calibration, rig_seed, cache_dir(), say)
     exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
     exp.config['predictor']['model'] = predictor
     started = time.monotonic()
 
     doc: dict[str, Any]
     if mode == 'lockstep':
-        from activesurv_bringup.lockstep import run_lockstep
+        from activesurv_bringup.experiments.lockstep import run_lockstep
 
         def progress(j: int, m: int, t: float) -> None:
             say(f'demand {j} of {m}, simulated time {t:.1f} s')
@@ -317,8 +382,8 @@ def experiment(
     elif opts.hosts == 'netns':
         doc = _run_on_hosts(exp, out, opts, say)
     else:
-        from activesurv_bringup.graph import run_graph
-        from activesurv_bringup.report import load_run
+        from activesurv_bringup.experiments.graph import run_graph
+        from activesurv_bringup.experiments.report import load_run
 
         if opts.dds_profile is not None:
             say(f'Fast DDS profile {opts.dds_profile}')
@@ -332,10 +397,10 @@ def _run_on_hosts(
     exp: Any, out: Path, opts: RunOptions, say: Callable[[str], None]
 ) -> dict[str, Any]:
     """Run the graph over network namespaces: core plus one host per camera, DDS over UDP."""
-    from activesurv_bringup.evaluation import write_results
-    from activesurv_bringup.graph import run_graph
-    from activesurv_bringup.netns import NetnsHosts, unavailable_reason
-    from activesurv_bringup.report import load_run
+    from activesurv_bringup.experiments.evaluation import write_results
+    from activesurv_bringup.experiments.graph import run_graph
+    from activesurv_bringup.experiments.report import load_run
+    from activesurv_launch.netns import NetnsHosts, unavailable_reason
 
     reason = unavailable_reason()
     if reason is not None:
@@ -355,7 +420,7 @@ def _run_on_hosts(
 
 def surveil(out: Path, session: Any, options: RunOptions | None = None) -> dict[str, Any]:
     """Run a continuous session into ``out`` (new or empty); returns its results document."""
-    from activesurv_bringup.surveil import run_surveil
+    from activesurv_bringup.experiments.surveil import run_surveil
 
     new_output_dir(out)
     started = time.monotonic()
@@ -378,7 +443,7 @@ def replay(
     bag: Path, out: Path, rtf: float = 1.0, foxglove: int | None = None
 ) -> list[dict[str, Any]]:
     """Re-run imaging and fusion on a recorded run (its bag or its directory) into ``out``."""
-    from activesurv_bringup.replay import compare, run_replay
+    from activesurv_bringup.experiments.replay import compare, run_replay
 
     if not (bag / 'metadata.yaml').exists() and (bag / 'bag').is_dir():
         bag = bag / 'bag'  # a run directory
@@ -405,8 +470,8 @@ def commission(
     out: Path, rig: Path | None, live: bool = False, cameras: str | None = None
 ) -> dict[str, Any]:
     """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one."""
-    from activesurv_bringup.commission import run_commission
-    from activesurv_bringup.rigs import resolve_rig
+    from activesurv_bringup.rig.commission import run_commission
+    from activesurv_bringup.rig.rigs import resolve_rig
 
     if (rig is None) == (not live):
         raise ConfigError('give --rig RIG.yaml (simulation) or --live (the running hardware)')
@@ -421,14 +486,14 @@ def commission(
     return doc
 
 
-def report(path: Path) -> Path:
-    """results.json, plots and report.md of recorded runs; returns the report's path."""
-    from activesurv_bringup.report import report as make_report
-    from activesurv_bringup.report import summary_table
+def report(path: Path, out: Path | None = None) -> Path:
+    """Plots and report.md of recorded runs (into ``out``); returns the report's path."""
+    from activesurv_bringup.experiments.report import report as make_report
+    from activesurv_bringup.experiments.report import summary_table
 
-    docs, out = make_report(path)
+    docs, out = make_report(path, out)
     if docs and all(d.get('mode') == 'surveil' for d in docs):
-        from activesurv_bringup.surveil import session_table
+        from activesurv_bringup.experiments.surveil import session_table
 
         print('\n\n'.join(session_table(d) for d in docs))
     else:
@@ -439,14 +504,15 @@ def report(path: Path) -> Path:
 
 def demo(
     out: Path | None,
-    seed: int = 1,
+    seed: int = DEFAULT_SEED,
     mode: str = 'graph',
     options: RunOptions | None = None,
     rig: Path | None = None,
     calibration: str | None = None,
+    rig_seed: int = DEFAULT_RIG_SEED,
 ) -> Path:
     """The six experiments and their report, in a new directory; returns it."""
-    from activesurv_bringup.report import summary_table, write_report
+    from activesurv_bringup.experiments.report import summary_table, write_report
 
     root = new_output_dir(out) if out is not None else timestamped_dir(Path('runs'), 'demo')
     print(f'activesurv demo: writing to {root}', flush=True)
@@ -465,6 +531,7 @@ def demo(
                     options=options,
                     rig=rig,
                     calibration=calibration,
+                    rig_seed=rig_seed,
                 )
             )
     path = write_report(docs, root)
@@ -483,67 +550,96 @@ def main(argv: list[str] | None = None) -> int:
         from activesurv_stages.cli import run
 
         return run(args)
+    out = getattr(args, 'out', None)
+    made = out is not None and not Path(out).exists()
     try:
-        if args.command == 'experiment':
-            experiment(
-                args.set_name,
-                args.system,
-                args.out,
-                args.seed,
-                args.mode,
-                args.trajectory,
-                args.expect,
-                run_options(args),
-                args.predictor,
-                args.rig,
-                args.calibration,
-            )
-        elif args.command == 'surveil':
-            from activesurv_bringup.options import new_output_dir
-            from activesurv_bringup.rigs import choose
-            from activesurv_bringup.surveil import SurveilOptions, parse_demand_at
-
-            new_output_dir(args.out)  # refused before anything is commissioned
-            session = SurveilOptions(
-                rig=choose(args.rig, args.calibration, args.seed, args.out.parent),
-                duration=args.duration,
-                arrival_interval=args.arrival_interval,
-                demand_interval=args.demand_interval,
-                demand_at=parse_demand_at(args.demand_at),
-                max_bag_duration=args.max_bag_duration,
-                system=args.system,
-                seed=args.seed,
-            )
-            surveil(args.out, session, run_options(args))
-        elif args.command == 'replay':
-            replay(args.bag, args.out, args.rtf, args.foxglove)
-        elif args.command == 'bag':
-            from activesurv_bringup.salvage import reindex
-
-            print(json.dumps(reindex(args.bag).as_dict(), indent=2))
-        elif args.command == 'report':
-            report(args.path)
-        elif args.command == 'demo':
-            demo(args.out, args.seed, args.mode, run_options(args), args.rig, args.calibration)
-        elif args.command == 'commission':
-            commission(args.out, args.rig, args.live, args.cameras)
-        elif args.command == 'lab':
-            from activesurv_bringup.lab import run_lab
-
-            run_lab(args.rig, args.out, _camera_list(args.cameras))
-        elif args.command == 'rig':
-            from activesurv_bringup.rigs import run as write_rig
-
-            print(f'rig written: {write_rig(args)}')
-        else:
-            return 2
-    except (BringupError, OSError, ValueError) as exc:
+        arguments.check(args)
+        _dispatch(args)
+    except USER_ERRORS + (OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # a second Ctrl-C while stopping: the nodes were still stopped
         print(f'activesurv {args.command}: interrupted', file=sys.stderr)
         return 130
+    finally:
+        if made and out is not None:
+            _drop_if_empty(Path(out))
     return 0
+
+
+def _drop_if_empty(out: Path) -> None:
+    """A failed command leaves no empty ``--out`` it made (never one holding anything)."""
+    try:
+        if out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+    except OSError:
+        pass
+
+
+def _dispatch(args: argparse.Namespace) -> None:
+    if args.command == 'experiment':
+        experiment(
+            args.set_name,
+            args.system,
+            args.out,
+            args.seed,
+            args.mode,
+            args.trajectory,
+            args.expect,
+            run_options(args),
+            args.predictor,
+            args.rig,
+            args.calibration,
+            args.rig_seed,
+        )
+    elif args.command == 'surveil':
+        from activesurv_bringup.experiments.surveil import SurveilOptions, parse_demand_at
+        from activesurv_bringup.rig.choice import choose
+
+        new_output_dir(args.out)  # refused before anything is commissioned
+
+        def say(text: str) -> None:
+            print(f'  surveil: {text}', flush=True)
+
+        session = SurveilOptions(
+            rig=choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say),
+            duration=args.duration,
+            arrival_interval=args.arrival_interval,
+            demand_interval=args.demand_interval,
+            demand_at=parse_demand_at(args.demand_at),
+            max_bag_duration=args.max_bag_duration,
+            system=args.system,
+            seed=args.seed,
+        )
+        surveil(args.out, session, run_options(args))
+    elif args.command == 'replay':
+        replay(args.bag, args.out, args.rtf, args.foxglove)
+    elif args.command == 'bag':
+        from activesurv_recording.salvage import reindex
+
+        print(json.dumps(reindex(args.bag).as_dict(), indent=2))
+    elif args.command == 'report':
+        report(args.path, args.out)
+    elif args.command == 'demo':
+        demo(
+            args.out,
+            args.seed,
+            args.mode,
+            run_options(args),
+            args.rig,
+            args.calibration,
+            args.rig_seed,
+        )
+    elif args.command == 'commission':
+        commission(args.out, args.rig, args.live, args.cameras)
+    elif args.command == 'lab':
+        from activesurv_bringup.rig.lab import run_lab
+
+        run_lab(args.rig, args.out, _camera_list(args.cameras))
+    elif args.command == 'rig':
+        from activesurv_bringup.rig.rigs import run as write_rig
+
+        print(f'rig written: {write_rig(args)}')
 
 
 if __name__ == '__main__':

@@ -1,19 +1,20 @@
-"""Exceptions of the bringup package."""
+"""Exceptions of the bringup package (and those of the packages it drives, re-exported)."""
 
 from __future__ import annotations
+
+from activesurv_launch.errors import LaunchError as LaunchError
+from activesurv_launch.errors import NodeDiedError as NodeDiedError
+from activesurv_recording.errors import BagError as BagError
+from activesurv_recording.errors import RecordingError as RecordingError
 
 
 class BringupError(Exception):
     """Base class of all activesurv_bringup errors."""
 
 
-class NodeDiedError(BringupError):
-    """A required node process exited while the run was going."""
-
-
 class ConfigError(BringupError, ValueError):
     """A configuration file or command-line value is invalid."""
 
 
-class BagError(BringupError):
-    """A bag cannot be written or read (missing, truncated, corrupt)."""
+# What a command reports as a one-line error rather than a traceback.
+USER_ERRORS: tuple[type[Exception], ...] = (BringupError, LaunchError, RecordingError)

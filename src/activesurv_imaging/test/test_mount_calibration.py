@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from activesurv_bringup.sensor_model_experiment import fit_model, run_experiment
+from activesurv_bringup.experiments.sensor_model_experiment import fit_model, run_experiment
 from activesurv_common.camera_model import CameraModel, overhead_camera
 from activesurv_common.geometry import Transform, rot_x, rot_y
 from activesurv_common.mount import CameraMount, solve_rotation_centre

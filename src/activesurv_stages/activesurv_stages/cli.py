@@ -56,9 +56,11 @@ def add_arguments(sub: Any) -> None:
         ('move', 'move one axis to an absolute position and wait until idle'),
     ):
         p = sub.add_parser(name, help=text)
-        p.add_argument('--protocol', required=True, choices=sorted(DRIVERS))
+        p.add_argument(
+            '--protocol', required=True, choices=sorted(DRIVERS), help='controller protocol'
+        )
         p.add_argument('--port', required=True, help='serial port, e.g. /dev/ttyUSB0')
-        p.add_argument('--baud', type=int, default=115200)
+        p.add_argument('--baud', type=int, default=115200, help='serial baud rate')
         p.add_argument('--timeout', type=float, default=2.0, help='reply timeout (s)')
         if name == 'move':
             p.add_argument('--axis', required=True, help='Zaber device number or GRBL letter')
@@ -66,7 +68,9 @@ def add_arguments(sub: Any) -> None:
             p.add_argument('--speed', type=float, default=None, help='raw units/s')
             p.add_argument('--home', action='store_true', help='home the controller first')
     p = sub.add_parser('emulate', help='run a controller emulator on a pseudo-terminal')
-    p.add_argument('--protocol', required=True, choices=sorted(DRIVERS))
+    p.add_argument(
+        '--protocol', required=True, choices=sorted(DRIVERS), help='controller protocol'
+    )
     p.add_argument('--link', required=True, type=Path, help='path of the emulated port')
     p.add_argument('--devices', type=int, default=2, help='Zaber devices on the chain')
     p.add_argument('--homed', action='store_true', help='start homed / unlocked')

@@ -104,8 +104,8 @@ def test_xy_table_and_sim_stage_on_simulated_time(
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
 
-    from activesurv_bringup.launcher import Launcher, NodeSpec
     from activesurv_interfaces.msg import ObjectState
+    from activesurv_launch.launcher import Launcher, NodeSpec
 
     specs = [
         NodeSpec(

@@ -20,9 +20,9 @@ from __future__ import annotations
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from types import FrameType
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -101,8 +101,14 @@ def run_node(
         errors: start-up errors of the node's package, in addition to :data:`STARTUP_ERRORS`.
 
     Returns:
-        The exit status: 0 after a clean stop, 1 if the node could not start.
+        The exit status: 0 after a clean stop (or after ``--help``), 1 if the node could not
+        start.
     """
+    argv = sys.argv[1:] if args is None else args
+    mine = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
+    if '-h' in mine or '--help' in mine:
+        print(help_text(name, factory))
+        return 0
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = factory()
@@ -127,3 +133,24 @@ def run_node(
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def help_text(name: str, factory: Callable[..., Any]) -> str:
+    """``--help`` of a node's console script: what it is, how to set its parameters, and each
+    parameter with its default (from the ``PARAMS`` its module declares)."""
+    module = sys.modules.get(getattr(factory, '__module__', ''), None)
+    doc = (factory.__doc__ or getattr(module, '__doc__', None) or '').strip().split('\n\n')[0]
+    params: Sequence[Any] = getattr(module, 'PARAMS', ())
+    lines = [
+        f'usage: {name} [--ros-args [-r __node:=NAME] [-r __ns:=/NS] [-p NAME:=VALUE ...] '
+        '[--params-file FILE.yaml]]',
+        '',
+        ' '.join(doc.split()),
+    ]
+    if params:
+        lines += ['', 'parameters:']
+        for p in params:
+            plain = isinstance(p.default, (bool, int, float, str, list))
+            default = p.default if plain else 'unset'
+            lines.append(f'  {p.name} (default: {default!r}): {p.description}')
+    return '\n'.join(lines)

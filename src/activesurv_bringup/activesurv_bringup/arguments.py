@@ -1,0 +1,165 @@
+"""Every argument of an ``activesurv`` command checked before any long step.
+
+A run starts with steps that take minutes (commissioning a rig, starting nodes); a bad argument
+found after them wastes that time. :func:`check` looks at everything a command line says that
+can be judged without running anything (numbers in range, files that exist and parse, names
+that are known) and raises :class:`ConfigError` with a one-line reason at the first problem. It
+imports only light modules, so a refusal comes within a second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.experiments.faults import parse_fault, parse_kill
+from activesurv_bringup.experiments.surveil import SurveilOptions, parse_demand_at
+from activesurv_bringup.files import dds_profile_path
+from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
+from activesurv_common.calibration import load_calibration
+from activesurv_common.errors import CalibrationError
+from activesurv_sim.rig import RigError, load_rig
+from activesurv_sim.xytable import from_csv
+from activesurv_stages.errors import ConfigError as StageConfigError
+
+EXPECTED_PATHS = ('parabolic', 'diagonal')
+
+
+def positive(name: str, value: float | None, allow_zero: bool = False) -> None:
+    """``value`` is a finite number > 0 (>= 0 with ``allow_zero``); None passes."""
+    if value is None:
+        return
+    ok = math.isfinite(value) and (value >= 0.0 if allow_zero else value > 0.0)
+    if not ok:
+        raise ConfigError(f'{name} must be {">=" if allow_zero else ">"} 0, got {value}')
+
+
+def port(value: int | None) -> None:
+    """A TCP port for ``--foxglove``."""
+    if value is not None and not 1 <= value <= 65535:
+        raise ConfigError(f'--foxglove {value}: a port is 1..65535')
+
+
+def existing_file(name: str, path: Path | str | None) -> None:
+    if path is not None and not Path(path).is_file():
+        raise ConfigError(f'{name} {path}: no such file')
+
+
+def rig_file(path: Path | None) -> None:
+    """``--rig`` names a readable rig file."""
+    if path is None:
+        return
+    existing_file('--rig', path)
+    try:
+        load_rig(path, nominal_mounts())
+    except RigError as exc:
+        raise ConfigError(f'--rig {path}: {exc}') from exc
+
+
+def calibration(choice: str | None) -> None:
+    """``--calibration`` is ``nominal``, ``truth`` or a calibration directory."""
+    if choice is None or choice in CALIBRATIONS:
+        return
+    if not Path(choice).is_dir():
+        raise ConfigError(
+            f'--calibration {choice}: neither {" nor ".join(CALIBRATIONS)} nor a directory'
+        )
+    try:
+        load_calibration(choice, nominal_mounts())
+    except CalibrationError as exc:
+        raise ConfigError(f'--calibration {choice}: {exc}') from exc
+
+
+def trajectory(name: str, path: str | None) -> None:
+    """A ``t,x,y`` CSV the xy table can run."""
+    if path is None:
+        return
+    existing_file(name, path)
+    try:
+        from_csv(path)
+    except (StageConfigError, ValueError) as exc:
+        raise ConfigError(f'{name}: {exc}') from exc
+
+
+def expect(value: str | None) -> None:
+    if value is None or value in EXPECTED_PATHS:
+        return
+    if not Path(value).is_file():
+        raise ConfigError(
+            f'--expect {value}: neither {" nor ".join(EXPECTED_PATHS)} nor a CSV file'
+        )
+    trajectory('--expect', value)
+
+
+def output_dir(name: str, path: Path | None) -> None:
+    """A new or empty directory (nothing is ever overwritten)."""
+    if path is None:
+        return
+    if path.exists() and (not path.is_dir() or any(path.iterdir())):
+        raise ConfigError(f'{name} {path}: exists and is not empty (nothing is overwritten)')
+
+
+def session(args: argparse.Namespace) -> None:
+    """A surveillance session's options, checked as the session will check them."""
+    SurveilOptions(
+        duration=args.duration,
+        arrival_interval=args.arrival_interval,
+        demand_interval=args.demand_interval,
+        demand_at=parse_demand_at(args.demand_at),
+        max_bag_duration=args.max_bag_duration,
+        system=args.system,
+        seed=args.seed,
+    )
+
+
+def _get(args: argparse.Namespace, name: str) -> Any:
+    return getattr(args, name, None)
+
+
+def check(args: argparse.Namespace) -> None:
+    """Refuse a command line that cannot run, before anything runs.
+
+    Raises:
+        ConfigError: naming the first bad argument and why.
+    """
+    cmd = args.command
+    positive('--rtf', _get(args, 'rtf'))
+    positive('--duration', _get(args, 'duration'))
+    positive('--image-rate', _get(args, 'image_rate'), allow_zero=True)
+    positive('--arrival-interval', _get(args, 'arrival_interval'))
+    positive('--demand-interval', _get(args, 'demand_interval'))
+    positive('--max-bag-duration', _get(args, 'max_bag_duration'), allow_zero=True)
+    port(_get(args, 'foxglove'))
+    seed = _get(args, 'seed')
+    if isinstance(seed, int) and seed < 0 and cmd != 'rig':
+        raise ConfigError(f'--seed must be >= 0, got {seed}')
+    rig_seed = _get(args, 'rig_seed')
+    if isinstance(rig_seed, int) and rig_seed < 0:
+        raise ConfigError(f'--rig-seed must be >= 0, got {rig_seed}')
+    if cmd in ('experiment', 'surveil', 'demo', 'lab', 'commission'):
+        rig_file(_get(args, 'rig'))
+    if cmd in ('experiment', 'surveil', 'demo'):
+        calibration(_get(args, 'calibration'))
+        profile = _get(args, 'dds_profile')
+        if profile:
+            dds_profile_path(profile)
+    if cmd == 'experiment':
+        trajectory('--trajectory', _get(args, 'trajectory'))
+        expect(_get(args, 'expect'))
+        for f in _get(args, 'fault') or []:
+            parse_fault(f)
+        for k in _get(args, 'kill') or []:
+            parse_kill(k)
+    if cmd == 'surveil':
+        session(args)
+    if cmd == 'replay':
+        bag = Path(args.bag)
+        if not bag.exists():
+            raise ConfigError(f'replay: no run or bag at {bag}')
+    if cmd in ('experiment', 'surveil', 'replay', 'commission', 'lab'):
+        output_dir('--out', _get(args, 'out'))
+    if cmd == 'demo':
+        output_dir('--out', _get(args, 'out'))

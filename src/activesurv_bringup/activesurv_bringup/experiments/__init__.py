@@ -1,0 +1,2 @@
+"""Runs: experiment definitions, the node graph and lockstep, faults, evaluation, reports,
+surveillance."""

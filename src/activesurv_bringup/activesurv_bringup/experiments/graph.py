@@ -1,0 +1,618 @@
+"""Graph mode: one experiment run as the real node graph over DDS, recorded to a bag.
+
+Like a launch file, :func:`graph_specs` lists every node with its parameters; :func:`run_graph`
+starts them as processes, the recorder first and the xy table (which owns ``/clock``) last, once
+every node has joined the graph, so simulated time starts only when nothing can miss the object
+entering. A monitor node in this process shows progress (demand j of m, simulated time) and
+ends the run when every demand has an answer or time runs out. The nodes are then stopped in
+reverse order, the recorder last.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from activesurv_bringup.errors import ConfigError, NodeDiedError
+from activesurv_bringup.experiments.experiment import Experiment
+from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill, imager_injection
+from activesurv_bringup.experiments.options import RunOptions, scoped_environ
+from activesurv_bringup.specs import mount_parameters, stage_spec
+from activesurv_launch.launcher import Launcher, NodeSpec, container
+
+if TYPE_CHECKING:
+    from activesurv_launch.compose import Composition
+    from activesurv_launch.netns import NetnsHosts
+from activesurv_common.calibration import pose_to_list
+
+Progress = Callable[[str], None]
+
+
+def rig_files(exp: Experiment, out: Path) -> dict[str, str]:
+    """Write the run's rig (the simulator's truth), its calibration and the believed set-up
+    into ``out/rig`` for the nodes; returns the paths (empty without a rig)."""
+    if exp.rig is None:
+        return {}
+    from activesurv_dispatch.sensors import setup_to_dict
+    from activesurv_sim.rig import save_rig
+
+    d = out / 'rig'
+    d.mkdir(parents=True, exist_ok=True)
+    save_rig(exp.rig.rig, d / 'rig.yaml')
+    exp.rig.calibration.save(d / 'calibration')
+    (d / 'setup.yaml').write_text(yaml.safe_dump(setup_to_dict(exp.setup), sort_keys=False))
+    return {
+        'rig_file': str(d / 'rig.yaml'),
+        'calibration': str(d / 'calibration'),
+        'setup_file': str(d / 'setup.yaml'),
+    }
+
+
+def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
+    info = exp.summary()
+    info.update(
+        {
+            'mode': 'graph',
+            'marker_radius': exp.setup.marker_radius,
+            'object': exp.config['object'],
+            'faults': [str(f) for f in faults],
+        }
+    )
+    if exp.rig is not None:  # what the system was told: a replay's imagers are told the same
+        from activesurv_dispatch.sensors import setup_to_dict
+
+        info['setup'] = setup_to_dict(exp.setup)
+    return info
+
+
+def graph_specs(
+    exp: Experiment,
+    bag: Path,
+    rtf: float = 1.0,
+    image_rate: float = 2.0,
+    faults: Sequence[Fault] = (),
+    thin: Sequence[str] = (),
+    split_hosts: bool = False,
+    preview_rate: float = 0.0,
+) -> list[NodeSpec]:
+    """Every node of the run with its parameters, in start order (xy table last).
+
+    ``thin`` adds topics the recorder thins to ``image_rate``; with ``split_hosts`` each
+    camera's nodes go on host ``camN`` and the rest on ``core``; ``preview_rate`` (Hz) makes
+    the dynamic cameras stream previews for viewers (never recorded).
+    """
+    cfg = exp.config
+    sim = {'use_sim_time': True}
+    obj = cfg['object']
+    files = rig_files(exp, bag.parent)
+    over = pose_to_list(exp.overhead(truth=False)[1])  # as the system believes it
+    truth = {'rig_file': files['rig_file']} if files else {}
+    believed = {'setup_file': files['setup_file']} if files else {}
+
+    def info(camera_id: str) -> dict[str, str]:
+        return {'camera_info_file': f'{files["calibration"]}/{camera_id}.yaml'} if files else {}
+
+    by_cam = {f.camera: f for f in faults}
+    pc, dc = cfg['predictor'], cfg['dispatch']
+    specs = [
+        NodeSpec(
+            'recorder',
+            'activesurv_recording.recorder_node',
+            parameters={
+                **sim,
+                'output': str(bag),
+                'image_rate': float(image_rate),
+                'run_info': json.dumps(run_info(exp, faults)),
+                'thin_topics': ['/overhead/image_raw', '/overhead/camera_info', *thin],
+                'exclude': ['/rosout', '/parameter_events']
+                + [
+                    f'/{c}/preview/image_raw'
+                    for c in ['overhead', *(s.camera_id for s in exp.setup.sensors)]
+                ],
+            },
+        ),
+        NodeSpec(
+            'overhead_camera',
+            'activesurv_sim.sim_camera_node',
+            parameters={
+                **sim,
+                'camera_id': 'overhead',
+                'camera_type': 'overhead',
+                'mount.static_pose': over,
+                **truth,
+                **info('overhead'),
+                'frame_rate': float(cfg['overhead']['rate']),
+                'seed': exp.seed * 100 + 99,
+            },
+        ),
+        NodeSpec(
+            'overhead_locator',
+            'activesurv_imaging.overhead_locator_node',
+            parameters={
+                **sim,
+                'camera_pose': over,
+                'marker_height': float(obj['top_height']),
+                'marker_radius': exp.setup.marker_radius,
+            },
+        ),
+        NodeSpec(
+            'predictor',
+            'activesurv_prediction.predictor_node',
+            parameters={
+                **sim,
+                'marker_height': float(obj['top_height']),
+                'demand_times': [float(t) for t in exp.demand_times],
+                'horizon': int(pc['horizon']),
+                'measurement_std': float(pc['measurement_std']),
+                'jerk_std': float(pc['jerk_std']),
+                'model': str(pc.get('model', 'imm')),
+                'confirm_fixes': int(pc['confirm_fixes']),
+                'side_marker_offset': [float(v) for v in obj['side_offset']],
+                'side_marker_normal': [float(v) for v in obj['side_normal']],
+            },
+        ),
+        NodeSpec(
+            'dispatcher',
+            'activesurv_dispatch.dispatcher_node',
+            parameters={
+                **sim,
+                'motion_class': exp.system,
+                **believed,
+                'k': int(cfg['k']),
+                'rho': float(dc['rho']),
+                'capture_lead': float(dc['capture_lead']),
+                'settle_time': float(dc['settle_time']),
+            },
+        ),
+        NodeSpec(
+            'frames',
+            'activesurv_liveview.frames_node',
+            parameters={**sim, 'motion_class': exp.system, 'overhead_pose': over, **believed},
+        ),
+        NodeSpec(
+            'fusion',
+            'activesurv_fusion.fusion_node',
+            parameters={
+                **sim,
+                'collect_timeout': float(cfg['fusion']['collect_timeout']),
+                'z_sigma': float(cfg['fusion']['z_sigma']),
+                'journal': str(bag.parent / 'logs' / 'fusion.journal'),
+            },
+        ),
+    ]
+    for i, s in enumerate(exp.setup.sensors):
+        cid = s.camera_id
+        fault = by_cam.get(cid)
+        if fault is not None and fault.kind is FaultKind.DEAD:
+            continue  # the camera's nodes are not running
+        specs.append(
+            stage_spec(s, exp.setup.initial[cid], exp.system, 10.0, sim_time=True)
+        )  # 10 Hz: states at the demand instants come extra
+        cam_params: dict[str, Any] = {
+            **sim,
+            'camera_id': cid,
+            'frame_rate': 0.0,
+            'preview_rate': float(preview_rate),
+            'seed': exp.seed * 100 + i,
+            **mount_parameters(s),
+            **truth,
+            **info(cid),
+        }
+        imager_params: dict[str, Any] = {
+            **sim,
+            'camera_id': cid,
+            'marker_radius': exp.setup.marker_radius,
+            **mount_parameters(s),
+            'reliable_images': True,
+            'exact_states': True,  # the simulated stages latch their state at each instant
+        }
+        if fault is not None and fault.kind is FaultKind.FROZEN:
+            cam_params['inject_frozen'] = True
+        imager_params.update(imager_injection(fault))
+        specs.append(
+            NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params)
+        )
+        specs.append(
+            NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
+        )
+    if split_hosts:
+        from dataclasses import replace
+
+        specs = [
+            replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
+            for s in specs
+        ]
+    spec = exp.actual_spec
+    table: dict[str, Any] = {
+        'path_type': str(spec['type']),
+        'speed': float(obj['speed']),
+        'acceleration': float(obj['acceleration']),
+        'start_time': float(obj['start_time']),
+        'enters_at_start': bool(obj.get('enters_at_start', False)),
+        'top_height': float(obj['top_height']),
+        'side_offset': [float(v) for v in obj['side_offset']],
+        'side_normal': [float(v) for v in obj['side_normal']],
+        # 20 Hz of /clock and object states: the overhead camera runs at 10 Hz, every demand
+        # instant gets a tick and a state of its own, and each tick wakes every process.
+        'publish_rate': 20.0,
+        'publish_clock': True,
+        'real_time_factor': float(rtf),
+        **truth,
+        # The recorder and every simulated camera must hear the object from the start.
+        'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
+    }
+    if spec['type'] == 'csv':
+        table['csv_file'] = str(spec['csv'])
+    else:
+        table['path_points'] = [float(v) for v in spec['points']]
+    host = 'core' if split_hosts else ''
+    specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
+    return specs
+
+
+CAMERA_MODULES = (
+    'activesurv_sim.sim_camera_node',
+    'activesurv_sim.sim_stage_node',
+    'activesurv_imaging.imager_node',
+    'activesurv_stages.stage_bridge_node',
+)
+ALONE_MODULES = ('activesurv_recording.recorder_node', 'activesurv_sim.xy_table_node')
+
+
+def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> list[NodeSpec]:
+    """Node specs grouped into container processes, as a real rig would run them per host.
+
+    Each dynamic camera's stage, camera and imager share a container ``camN`` (with
+    ``--hosts netns`` that is the camera's host): its frames go to its imager inside the
+    process, and the cameras render and measure in parallel on separate cores. The overhead
+    camera and its locator share ``overhead``; predictor, dispatcher and fusion ``core``.
+    The recorder (its disk writes must not stall anyone), the xy table (it starts last and
+    owns /clock) and the nodes named in ``alone`` (nodes to kill and restart, load
+    generators) run as processes of their own. Start order is kept: a group starts where its
+    first member stood.
+    """
+    groups: dict[str, list[NodeSpec]] = {}
+    order: list[NodeSpec | str] = []
+    for s in specs:
+        if s.members or s.module in ALONE_MODULES or s.name in alone:
+            order.append(s)
+            continue
+        key = s.name.split('_')[0] if s.module in CAMERA_MODULES else 'core'
+        if s.module == 'activesurv_imaging.overhead_locator_node':
+            key = 'overhead'  # with the overhead camera: its frames stay in the process
+        if key not in groups:
+            groups[key] = []
+            order.append(key)
+        groups[key].append(s)
+    out: list[NodeSpec] = []
+    for item in order:
+        if isinstance(item, NodeSpec):
+            out.append(item)
+        elif len(groups[item]) == 1:
+            out.append(groups[item][0])
+        else:
+            out.append(container(item, groups[item], groups[item][0].host))
+    return out
+
+
+class _Monitor:
+    """Watches /clock and the estimates from inside the orchestrator."""
+
+    def __init__(self, expected_nodes: Sequence[str]) -> None:
+        import rclpy
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import String
+
+        from activesurv_interfaces.msg import TargetEstimate
+
+        self.rclpy = rclpy
+        self.node = rclpy.create_node('activesurv_monitor')
+        self.sim_time = 0.0
+        self.estimates: dict[int, Any] = {}
+        self.expected_nodes = set(expected_nodes)
+        self.node.create_subscription(
+            Clock,
+            '/clock',
+            self._on_clock,
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT),
+        )
+        self.recorded: dict[str, int] = {}
+        self.node.create_subscription(String, '/activesurv/recorder_status', self._on_recorder, 10)
+        self.node.create_subscription(
+            TargetEstimate,
+            'target_estimate',
+            self._on_estimate,
+            QoSProfile(
+                depth=50,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            ),
+        )
+
+    def _on_clock(self, msg: Any) -> None:
+        self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
+
+    def _on_recorder(self, msg: Any) -> None:
+        with contextlib.suppress(ValueError, AttributeError):
+            self.recorded = {str(k): int(v) for k, v in json.loads(msg.data).items()}
+
+    def _on_estimate(self, msg: Any) -> None:
+        self.estimates[int(msg.demand_index)] = msg
+
+    def spin(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.rclpy.spin_once(
+                self.node, timeout_sec=min(0.05, max(end - time.monotonic(), 0.0))
+            )
+
+    def missing_nodes(self) -> set[str]:
+        present = {n for n, _ in self.node.get_node_names_and_namespaces()}
+        return self.expected_nodes - present
+
+    def close(self) -> None:
+        self.node.destroy_node()
+
+
+def _chaos(
+    launcher: Launcher,
+    kills: Sequence[Kill],
+    killed: set[Kill],
+    restarted: set[Kill],
+    specs: dict[str, NodeSpec],
+    sim_time: float,
+    progress: Progress,
+) -> None:
+    """Kill and restart nodes when simulated time reaches their instants."""
+    for k in kills:
+        fqn = specs[k.node].fqn
+        if k not in killed and sim_time >= k.at:
+            proc = launcher.processes[fqn]
+            proc.stopped_on_purpose = True
+            proc.kill()
+            killed.add(k)
+            progress(f'killed {k.node} (SIGKILL) at simulated time {sim_time:.2f} s')
+        due = k.restart_at is not None and sim_time >= k.restart_at
+        if due and k in killed and k not in restarted:
+            launcher.processes[fqn].process.wait(5.0)
+            launcher.start_node(specs[k.node])
+            restarted.add(k)
+            progress(f'restarted {k.node} at simulated time {sim_time:.2f} s')
+
+
+@dataclass(frozen=True)
+class Until:
+    """When a graph run ends, and what it says meanwhile.
+
+    Attributes:
+        done: True when the run should end (the monitor shows simulated time and estimates).
+        wall_limit: wall seconds after simulated time starts at which the run is failed.
+        report: a progress line, or None when there is nothing new to say.
+    """
+
+    done: Callable[[Any], bool]
+    wall_limit: float
+    report: Callable[[Any], str | None]
+
+
+def experiment_until(exp: Experiment, rtf: float) -> Until:
+    """An experiment ends when every demand has an answer (or its time is long past)."""
+    m = len(exp.demand_times)
+    end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
+    shown = [-1]
+
+    def report(mon: Any) -> str | None:
+        if len(mon.estimates) == shown[0]:
+            return None
+        shown[0] = len(mon.estimates)
+        return f'demand {shown[0]} of {m} answered, simulated time {mon.sim_time:.1f} s'
+
+    return Until(
+        lambda mon: len(mon.estimates) >= m or mon.sim_time >= end_sim,
+        (end_sim / max(rtf, 1e-3)) * 3.0 + 60.0,
+        report,
+    )
+
+
+def run_graph(
+    exp: Experiment,
+    out_dir: Path,
+    options: RunOptions | None = None,
+    progress: Progress = print,
+    hosts: NetnsHosts | None = None,
+    until: Until | None = None,
+    specs: list[NodeSpec] | None = None,
+) -> Path:
+    """Run ``exp`` as a node graph; returns the bag directory.
+
+    With ``options.compose`` every node runs in this process on one executor instead of in its
+    own process. ``options.kills`` SIGKILL nodes at simulated instants and restart them (chaos
+    testing). ``options.extra`` nodes (e.g. load generators) start with the graph;
+    ``options.thin`` topics are thinned in the bag. With ``hosts`` (namespaces ``core``,
+    ``cam1`` ...; this process must already be in ``core``) every camera's nodes run on their
+    own host.
+
+    ``until`` replaces the experiment's end (every demand answered); ``specs`` replaces the
+    experiment's nodes (as :func:`graph_specs` would list them, xy table last).
+
+    Raises:
+        ConfigError: for options that do not fit this run (a node to kill that is not in it).
+        NodeDiedError: if a node dies, or the graph does not come up in time.
+    """
+    import rclpy
+
+    opts = options or RunOptions()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bag = out_dir / 'bag'
+    if bag.exists():
+        raise ConfigError(f'{bag} exists: give a new --out directory')
+    if specs is None:
+        specs = graph_specs(
+            exp,
+            bag,
+            opts.rtf,
+            opts.image_rate,
+            opts.faults,
+            opts.thin,
+            split_hosts=hosts is not None,
+            preview_rate=opts.preview_rate,
+        )
+    if opts.extra:
+        specs = specs[:-1] + list(opts.extra) + specs[-1:]
+    by_name = {s.name: s for s in specs[:-1]}
+    for k in opts.kills:
+        if k.node not in by_name:
+            raise ConfigError(f'cannot kill {k.node}: it is not running in this run')
+    if opts.processes == 'containers' and not opts.compose:
+        alone = [k.node for k in opts.kills] + [s.name for s in opts.extra]
+        specs = group_processes(specs[:-1], alone) + specs[-1:]
+    rule = until or experiment_until(exp, opts.rtf)
+    with scoped_environ(opts.environment()):
+        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rclpy, rule)
+
+
+def _run(
+    out_dir: Path,
+    bag: Path,
+    specs: list[NodeSpec],
+    by_name: dict[str, NodeSpec],
+    opts: RunOptions,
+    progress: Progress,
+    hosts: NetnsHosts | None,
+    rclpy: Any,
+    until: Until,
+) -> Path:
+    killed: set[Kill] = set()
+    restarted: set[Kill] = set()
+    kills = opts.kills
+    startup_timeout = opts.startup_timeout
+    (out_dir / 'logs').mkdir(exist_ok=True)
+    env = dict(os.environ)
+    owns_rclpy = not rclpy.ok()
+    if owns_rclpy:
+        from rclpy.signals import SignalHandlerOptions
+
+        # SIGINT stays Python's (KeyboardInterrupt, or a session's own handler): the nodes are
+        # stopped in order in ``finally``, rather than the monitor's context shut under it.
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    monitor = _Monitor([m.name for s in specs[:-1] for m in (s.members or (s,))])
+    launcher: Launcher | Composition
+    if opts.compose:
+        from activesurv_launch.compose import Composition
+
+        launcher = Composition()
+    else:
+        prefixes = (
+            {h: hosts.prefix(h) for h in hosts.names if h != 'core'} | {'core': []}
+            if hosts is not None
+            else None
+        )
+        launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
+    try:
+        if isinstance(launcher, Launcher):
+            launcher.start()
+        else:
+            launcher.add(specs[:-1])
+        deadline = time.monotonic() + startup_timeout
+        while monitor.missing_nodes():
+            launcher.check()
+            if time.monotonic() > deadline:
+                raise NodeDiedError(
+                    f'nodes did not come up in {startup_timeout:.0f} s: '
+                    f'{sorted(monitor.missing_nodes())}'
+                )
+            monitor.spin(0.2)
+        monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
+        n_nodes = sum(len(s.members) or 1 for s in specs)
+        progress(
+            f'{n_nodes} nodes up in {len(specs) - 1} processes; starting the xy table and '
+            'simulated time'
+        )
+        if isinstance(launcher, Launcher):
+            launcher.start_node(specs[-1])
+        else:
+            launcher.add(specs[-1:])
+        cpu0, wall0 = _cpu(launcher), time.monotonic()
+        wall_limit = time.monotonic() + until.wall_limit
+        samples: list[dict[str, Any]] = []
+        next_sample = wall0
+        while not until.done(monitor):
+            if time.monotonic() >= next_sample and isinstance(launcher, Launcher):
+                next_sample += RESOURCE_PERIOD
+                samples.append(_resources(launcher, wall0, monitor.sim_time))
+            if isinstance(launcher, Launcher):
+                _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
+            launcher.check()
+            monitor.spin(0.25)
+            line = until.report(monitor)
+            if line:
+                progress(line)
+            if time.monotonic() > wall_limit:
+                raise NodeDiedError(
+                    f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
+                    f'after {until.wall_limit:.0f} s of wall time)'
+                )
+        # Stop only when the recorder has every estimate (a restarted node is matched late).
+        deadline = time.monotonic() + 20.0
+        while monitor.recorded.get('/target_estimate', 0) < len(monitor.estimates):
+            if time.monotonic() > deadline:
+                progress('the recorder is missing estimates after 20 s; stopping anyway')
+                break
+            monitor.spin(0.25)
+        monitor.spin(0.5)  # the recorder gets the last messages
+        _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
+        if samples:
+            (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
+    finally:
+        monitor.close()
+        # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
+        launcher.stop()
+        if owns_rclpy:
+            rclpy.try_shutdown()
+    return bag
+
+
+RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU
+
+
+def _resources(launcher: Launcher, wall0: float, sim_time: float) -> dict[str, Any]:
+    """One sample of ``resources.json``: wall and simulated time, RSS (MB) and CPU (s)."""
+    return {
+        'wall': round(time.monotonic() - wall0, 2),
+        'sim': round(sim_time, 2),
+        'rss_mb': {k: round(v / 2**20, 2) for k, v in launcher.rss_bytes().items()},
+        'cpu_s': {k: round(v, 2) for k, v in launcher.cpu_seconds().items()},
+    }
+
+
+def _cpu(launcher: Launcher | Composition) -> dict[str, float]:
+    """CPU seconds so far of each node process, and of this (orchestrating) process."""
+    own = os.times()
+    out = {'orchestrator': own.user + own.system}
+    if isinstance(launcher, Launcher):
+        out.update(launcher.cpu_seconds())
+    return out
+
+
+def _write_cpu(path: Path, before: dict[str, float], after: dict[str, float], wall: float) -> None:
+    """CPU use of the run from the start of simulated time to its end (``cpu.json``).
+
+    ``cores`` is CPU seconds of all processes over wall seconds: 1.0 is one core kept busy.
+    A node restarted mid-run counts from its restart.
+    """
+    used = {k: round(after[k] - before.get(k, 0.0), 3) for k in sorted(after)}
+    doc = {
+        'wall_seconds': round(wall, 3),
+        'cpu_seconds': used,
+        'cores': round(sum(used.values()) / max(wall, 1e-9), 3),
+    }
+    path.write_text(json.dumps(doc, indent=2) + '\n')

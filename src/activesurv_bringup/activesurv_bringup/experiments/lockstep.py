@@ -1,0 +1,273 @@
+"""Lockstep mode: the same cores as the node graph, stepped in one process without DDS.
+
+Each overhead frame period (10 Hz) the loop:
+
+1. moves the xy table, renders the overhead frame, and feeds the overhead fix to the Kalman
+   predictor (activesurv_prediction);
+2. predicts the rolling horizon and plans assignments and poses (activesurv_dispatch);
+3. sends the stage goals to simulated stages (activesurv_stages kinematics);
+4. at each demand instant, in the period it falls in, renders every assigned camera's frame
+   with the stages and the object exactly as they are then, measures the marker
+   (activesurv_imaging) and fuses the observations with Optimal Region (activesurv_fusion).
+
+It is deterministic for a seed, and fast enough for Monte Carlo studies over many seeds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from activesurv_bringup.experiments.evaluation import (
+    DemandRecord,
+    PredictionLog,
+    observed_visibility,
+)
+from activesurv_bringup.experiments.experiment import Experiment
+from activesurv_bringup.experiments.faults import Fault, FaultKind, imager_injection
+from activesurv_common.mount import CameraMount
+from activesurv_dispatch.motion import Capture
+from activesurv_dispatch.planner import Demand
+from activesurv_dispatch.session import Dispatcher, DispatcherConfig
+from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
+from activesurv_fusion.errors import InvalidReadingError
+from activesurv_fusion.pose_fusion import PoseReading
+from activesurv_imaging.capture import CaptureCore, ImagerConfig
+from activesurv_imaging.observation import ObservationStatus
+from activesurv_imaging.overhead import overhead_fix
+from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
+from activesurv_prediction.predictor import make_predictor
+from activesurv_prediction.tracker import Tracker, TrackState, Workspace
+from activesurv_sim.render import Renderer, SensorNoise
+from activesurv_sim.sim_camera import ObjectGeometry, object_scene
+from activesurv_stages.errors import LimitError
+from activesurv_stages.kinematics import AxisSimulator
+
+Array = NDArray[np.float64]
+Progress = Callable[[int, int, float], None]
+
+
+@dataclass
+class _Camera:
+    axes: list[AxisSimulator]
+    renderer: Renderer  # the true optics
+    mount: CameraMount  # the true mount (with the rig's stage errors)
+    imager: CaptureCore[NDArray[np.uint8]]  # what the system believes
+    first_frame: NDArray[np.uint8] | None = None
+
+    def joints(self, t: float) -> Array:
+        return np.array([ax.state(t)[0] for ax in self.axes])
+
+
+def _state_vector(exp: Experiment, t: float) -> Array:
+    s = exp.table().state(t)
+    return np.concatenate([s.top, s.side, s.side_normal])
+
+
+def run_lockstep(
+    exp: Experiment,
+    faults: Sequence[Fault] = (),
+    progress: Progress | None = None,
+    plan_log: list[tuple[int, tuple[str, ...]]] | None = None,
+) -> list[DemandRecord]:
+    """Run one experiment; returns one record per demand instant.
+
+    Args:
+        exp: the experiment.
+        faults: camera faults to inject.
+        progress: called as ``progress(demand_number, demands, sim_time)`` after each demand.
+        plan_log: if given, receives (demand index, assigned cameras) of every capture.
+    """
+    cfg = exp.config
+    rng = np.random.default_rng(exp.seed)
+    noise = SensorNoise()
+    geometry = ObjectGeometry(exp.setup.marker_radius, exp.setup.marker_radius)
+    by_cam = {f.camera: f for f in faults}
+    dead = {c for c, f in by_cam.items() if f.kind is FaultKind.DEAD}
+
+    # Prediction
+    true_over, T_over = exp.overhead(truth=True)
+    over_cam, T_over_believed = exp.overhead(truth=False)
+    over_renderer = Renderer(true_over)
+    pc = cfg['predictor']
+    tracker = Tracker(
+        make_predictor(
+            str(pc.get('model', 'imm')),
+            measurement_std=float(pc['measurement_std']),
+            jerk_std=float(pc['jerk_std']),
+        ),
+        Workspace(),
+        confirm_fixes=int(pc['confirm_fixes']),
+    )
+    schedule = DemandSchedule.explicit(exp.demand_times)
+    om = exp.object_model
+    target_geo = TargetGeometry.create(om.side_offset, om.side_normal)
+
+    # Dispatch, stages and imagers: the same session cores as the nodes
+    dc = cfg['dispatch']
+    dispatcher = Dispatcher(
+        exp.setup,
+        exp.model,
+        DispatcherConfig(
+            int(cfg['k']),
+            float(dc['rho']),
+            float(dc['capture_lead']),
+            float(dc['settle_time']),
+            # Lockstep hears every camera every step: liveness never expires.
+            camera_timeout=float('inf'),
+        ),
+    )
+    cameras = {
+        s.camera_id: _Camera(
+            [
+                AxisSimulator(lim, float(q), 0.0)
+                for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
+            ],
+            Renderer(exp.true_camera(s.camera_id)[0]),
+            exp.true_camera(s.camera_id)[1],
+            CaptureCore(
+                ImagerConfig(
+                    s.camera_id,
+                    exp.setup.marker_radius,
+                    **imager_injection(by_cam.get(s.camera_id)),  # type: ignore[arg-type]
+                ),
+                s.mount,
+                exp.model,
+                _identity,
+                s.camera,
+            ),
+        )
+        for s in exp.setup.sensors
+        if s.camera_id not in dead
+    }
+    z_sigma = float(cfg['fusion']['z_sigma'])
+
+    records: dict[int, DemandRecord] = {}
+    predicted = PredictionLog()
+    dt = 1.0 / float(cfg['overhead']['rate'])
+    n_steps = int(np.ceil(exp.end_time / dt)) + 1
+    for step in range(n_steps):
+        t = step * dt
+        state = _state_vector(exp, t)
+        img = over_renderer.render(T_over, object_scene(state, geometry), noise, rng)
+        fix = overhead_fix(img, over_cam, T_over_believed, om.top_height, exp.setup.marker_radius)
+        if fix.xy is not None:
+            tracker.update(t, fix.xy)
+        tracker.check_timeout(t)
+        horizon: list[Demand] = []
+        if tracker.state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
+            for p in predict_demands(
+                tracker.predictor, schedule, target_geo, om.top_height, t, int(pc['horizon'])
+            ):
+                horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
+                predicted.add(t, p.index, p.position, p.covariance)
+        for c, cam in cameras.items():
+            dispatcher.on_joints(c, cam.joints(t), t)
+        out = dispatcher.set_horizon(horizon, t, manoeuvres=tracker.manoeuvres.count)
+        out.merge(dispatcher.tick(t, serviced_until=t + dt - 1e-9))
+        for cmd in out.goals:
+            for ax, goal, v in zip(
+                cameras[cmd.camera_id].axes, cmd.positions, cmd.max_velocities, strict=True
+            ):
+                with contextlib.suppress(LimitError):  # planned poses are inside the limits
+                    ax.command(t, float(goal), float(v))
+        if plan_log is not None:
+            plan_log.extend((c.demand.index, c.cameras) for c in out.captures)
+        for done in out.serviced:
+            records[done.demand.index] = _capture(
+                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma
+            )
+            if progress:
+                progress(len(records), len(exp.demand_times), done.demand.time)
+
+    truth = exp.demands_on(expected=False)
+    out_records = []
+    for d in truth:
+        r = records.get(d.index)
+        if r is None:
+            r = DemandRecord(
+                d.index,
+                d.time,
+                d.position,
+                d.normal,
+                status='not_captured',
+                reason='the demand passed before a track and an assignment existed',
+            )
+        r.predictions = predicted.picks(d.index, d.time)
+        out_records.append(r)
+    return out_records
+
+
+def _identity(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    return image
+
+
+def _capture(
+    exp: Experiment,
+    capture: Capture,
+    cameras: dict[str, _Camera],
+    faults: dict[str, Fault],
+    rng: np.random.Generator,
+    noise: SensorNoise,
+    geometry: ObjectGeometry,
+    z_sigma: float,
+) -> DemandRecord:
+    started = time.perf_counter()
+    tj = capture.demand.time
+    truth = exp.table().state(tj)
+    scene = object_scene(np.concatenate([truth.top, truth.side, truth.side_normal]), geometry)
+    answers: dict[str, Answer] = {}
+    poses: dict[str, Array] = {}
+    for cid in capture.cameras:
+        if cid not in cameras:
+            continue  # a dead camera: no answer
+        cam = cameras[cid]
+        q = cam.joints(tj)
+        T = cam.mount.pose_from_joints(q)  # where the camera really is
+        img = cam.renderer.render(T, scene, noise, rng)
+        fault = faults.get(cid)
+        if fault is not None and fault.kind is FaultKind.FROZEN:
+            if cam.first_frame is None:
+                cam.first_frame = img
+            img = cam.first_frame
+        # The imager's own rule: the frame at t_j and the stage state at t_j.
+        cam.imager.request(capture.demand.index, tj, capture.demand.normal)
+        cam.imager.add_frame(tj, img)
+        cam.imager.add_joints(tj, q)
+        obs = cam.imager.poll(tj)[0]
+        if (
+            obs.status is not ObservationStatus.OK
+            or obs.position is None
+            or obs.normal is None
+            or obs.covariance is None
+        ):
+            answers[cid] = Answer(cid, Outcome.FAILED, None, f'{obs.status.name}: {obs.reason}')
+            continue
+        poses[cid] = q  # it imaged the marker: it counts for the observed visibility
+        try:
+            reading = PoseReading.create(cid, obs.position, obs.normal, obs.covariance)
+            answers[cid] = Answer(cid, Outcome.OK, reading)
+        except InvalidReadingError as exc:
+            answers[cid] = Answer(cid, Outcome.FAILED, None, str(exc))
+    batch = DemandBatch(capture.demand.index, tj, tuple(capture.cameras), answers)
+    result = resolve(batch, z=z_sigma)
+    rec = DemandRecord(capture.demand.index, tj, truth.side.copy(), truth.side_normal.copy())
+    rec.assigned = list(capture.cameras)
+    rec.missing = list(result.cameras_missing)
+    rec.status = result.status.name.lower()
+    rec.reason = result.reason
+    rec.visibility = observed_visibility(
+        exp.setup, exp.model, poses, truth.side, truth.side_normal
+    )
+    if result.fused is not None:
+        rec.estimated_position = result.fused.position.copy()
+        rec.estimated_normal = result.fused.normal.copy()
+        rec.cameras = list(result.fused.cameras_used)
+        rec.faulty = list(result.fused.cameras_faulty)
+    rec.latency = time.perf_counter() - started
+    return rec

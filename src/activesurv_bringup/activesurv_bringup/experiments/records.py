@@ -1,0 +1,74 @@
+"""One demand's record from the messages a bag holds for it (experiments and sessions)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from activesurv_bringup.experiments.evaluation import DemandRecord, visibility_from_transforms
+from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.sensor_model import SensorModel
+
+STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
+
+
+def msg_stamp(msg: Any) -> float:
+    """A stamped message's header time (s)."""
+    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+
+
+def msg_vector(v: Any) -> np.ndarray:
+    """A geometry_msgs Point or Vector3 as a (3,) array."""
+    return np.array([v.x, v.y, v.z], dtype=np.float64)
+
+
+def demand_record(
+    j: int,
+    tj: float,
+    truth: np.ndarray,
+    req: Any,
+    observations: Sequence[Any],
+    est: tuple[Any, int] | None,
+    model: SensorModel,
+) -> DemandRecord:
+    """The record of demand ``j`` at ``tj`` from its messages in a bag.
+
+    Args:
+        truth: side marker position and normal at ``tj`` (6,).
+        req: its capture request, or None.
+        observations: its marker observations.
+        est: its target estimate and the bag time it was recorded at (ns), or None.
+        model: the sensor model, for the visibility of the cameras that imaged the marker.
+    """
+    rec = DemandRecord(j, tj, truth[:3], truth[3:])
+    if req is not None:
+        rec.assigned = [str(c) for c in req.camera_ids]
+    seen = []
+    for o in observations:
+        if o.status == 0:
+            p, q = o.camera_pose.position, o.camera_pose.orientation
+            seen.append(
+                Transform.from_rt(matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z])
+            )
+    rec.visibility = visibility_from_transforms(model, seen, truth[:3], truth[3:]) if seen else 0.0
+    if est is None:
+        rec.status = 'not_captured' if req is None else 'no_answer'
+        rec.reason = (
+            'the demand passed with no capture request'
+            if req is None
+            else 'no target_estimate was recorded for it'
+        )
+        return rec
+    e, t_ns = est
+    rec.status = STATUS.get(int(e.status), f'status_{e.status}')
+    rec.reason = str(e.reason)
+    rec.cameras = [str(c) for c in e.cameras_used]
+    rec.faulty = [str(c) for c in e.cameras_faulty]
+    rec.missing = [str(c) for c in e.cameras_missing]
+    rec.latency = t_ns * 1e-9 - tj
+    if e.status in (0, 3) and np.all(np.isfinite(msg_vector(e.position))):
+        rec.estimated_position = msg_vector(e.position)
+        rec.estimated_normal = msg_vector(e.normal)
+    return rec

@@ -1,0 +1,236 @@
+"""Replay a recorded run: re-run imaging and fusion on its recorded data.
+
+A replay starts fresh imager and fusion nodes (and a recorder for their output) on simulated
+time, then republishes the recorded inputs of imaging and fusion: capture requests, every
+camera's frames and camera_info, and the stage joint states. The messages go out as the bytes
+recorded, on the bag's own clock (``/clock`` follows the bag time, at ``rtf`` times real time).
+The new estimates are then compared with the recorded ones. Imaging is deterministic, so a
+faithful replay reproduces them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from activesurv_bringup.errors import BagError, NodeDiedError
+from activesurv_bringup.specs import live_view_spec, mount_parameters
+from activesurv_dispatch.sensors import load_setup, setup_from_dict
+from activesurv_launch.launcher import Launcher, NodeSpec
+from activesurv_recording.bagio import (
+    message_class,
+    offered_qos,
+    playback_qos,
+    read_bag,
+    run_info,
+)
+
+Progress = Callable[[str], None]
+
+
+def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
+    # The mounts the run's imagers were given (its calibration), else the paper set-up.
+    if isinstance(info.get('setup'), dict):
+        setup = setup_from_dict(info['setup'], str(info['system']))
+    else:
+        setup = load_setup(motion=str(info['system']))
+    sim = {'use_sim_time': True}
+    specs = [
+        NodeSpec(
+            'replay_recorder',
+            'activesurv_recording.recorder_node',
+            parameters={
+                **sim,
+                'output': str(bag),
+                'image_rate': 0.0,
+                'run_info': json.dumps({**info, 'mode': 'replay'}),
+            },
+        )
+    ]
+    for s in setup.sensors:
+        specs.append(
+            NodeSpec(
+                f'{s.camera_id}_imager',
+                'activesurv_imaging.imager_node',
+                parameters={
+                    **sim,
+                    'camera_id': s.camera_id,
+                    'marker_radius': float(info['marker_radius']),
+                    'reliable_images': True,
+                    'exact_states': True,
+                    'frame_timeout': 3.0,
+                    **mount_parameters(s),
+                },
+            )
+        )
+    specs.append(
+        NodeSpec(
+            'fusion',
+            'activesurv_fusion.fusion_node',
+            parameters={
+                **sim,
+                'collect_timeout': 4.0,
+            },
+        )
+    )
+    return specs
+
+
+def _inputs(info: dict[str, Any]) -> set[str]:
+    cams = [c for c in info['initial_poses']]
+    topics = {'/capture_request'}
+    for c in cams:
+        topics |= {f'/{c}/image_raw', f'/{c}/camera_info', f'/{c}/stage/joint_states'}
+    return topics
+
+
+def run_replay(
+    bag: Path,
+    out_dir: Path,
+    rtf: float = 1.0,
+    progress: Progress = print,
+    foxglove: int | None = None,
+) -> Path:
+    """Replay ``bag``; returns the new bag with the replayed estimates.
+
+    Raises:
+        BagError: for an unreadable bag; NodeDiedError if a replay node dies.
+    """
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    info = run_info(bag)
+    messages = list(read_bag(bag, _inputs(info)))
+    if not messages:
+        raise BagError(f'bag {bag} has no imaging inputs to replay')
+    out_dir.mkdir(parents=True, exist_ok=True)
+    new_bag = out_dir / 'bag'
+    specs = replay_specs(info, new_bag)
+    if foxglove is not None:
+        specs.insert(-1, live_view_spec(foxglove))
+    owns = not rclpy.ok()
+    if owns:
+        rclpy.init()
+    node = rclpy.create_node('activesurv_replayer')
+    # Each topic is offered with the QoS its publishers offered when it was recorded
+    # (``playback_qos``, what ``ros2 bag play`` does), so a bag replays the same way with either.
+    # Bags from before the recorder noted offered QoS, or ACTIVESURV_REPLAY_RECORDED_QOS=0,
+    # get reliable + transient local (depth 50) on every topic, which matches every subscriber.
+    faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS', '1') != '0' and (
+        isinstance(info.get('recorder'), dict) and info['recorder'].get('qos') == 'offered'
+    )
+    recorded = offered_qos(bag) if faithful else {}
+    fallback = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=50,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+    pubs: dict[str, Any] = {}
+    for m in messages:
+        if m.topic not in pubs:
+            qos = playback_qos(recorded.get(m.topic, []), fallback)
+            pubs[m.topic] = node.create_publisher(message_class(m.msgtype), m.topic, qos)
+    clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
+    launcher = Launcher(specs, workdir=out_dir / 'logs', env=dict(os.environ))
+
+    def clock(t_ns: int) -> None:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
+        clock_pub.publish(msg)
+
+    try:
+        launcher.start()
+        deadline = time.monotonic() + 60.0
+        names = {s.name for s in specs}
+        while names - {n for n, _ in node.get_node_names_and_namespaces()}:
+            launcher.check()
+            if time.monotonic() > deadline:
+                raise NodeDiedError('replay nodes did not come up in 60 s')
+            rclpy.spin_once(node, timeout_sec=0.1)
+        # Every subscriber must be matched before the first message: the imagers subscribe
+        # volatile, so a message sent before the match is lost to them (a camera's first
+        # demand then measured with a held, wrong stage state).
+        everyone = [*pubs.items(), ('/clock', clock_pub)]
+
+        def matched() -> bool:
+            for topic, pub in everyone:
+                known = len(node.get_subscriptions_info_by_topic(topic))
+                if known == 0 or pub.get_subscription_count() < known:
+                    return False
+            return True
+
+        deadline = time.monotonic() + 20.0
+        while not matched() and time.monotonic() < deadline:
+            launcher.check()
+            rclpy.spin_once(node, timeout_sec=0.05)
+        settle = time.monotonic() + 0.5
+        while time.monotonic() < settle:  # and the subscribers matched back
+            rclpy.spin_once(node, timeout_sec=0.05)
+        how = 'the recorded QoS' if faithful else 'reliable + transient local QoS'
+        progress(f'replaying {len(messages)} messages into {len(specs)} nodes with {how}')
+        t0_bag = messages[0].t_ns
+        t0_wall = time.monotonic()
+        last_clock = 0
+        for m in messages:
+            due = t0_wall + (m.t_ns - t0_bag) * 1e-9 / rtf
+            while time.monotonic() < due:
+                rclpy.spin_once(node, timeout_sec=max(0.0, min(0.01, due - time.monotonic())))
+            if m.t_ns - last_clock > 10_000_000:
+                clock(m.t_ns)
+                last_clock = m.t_ns
+            pubs[m.topic].publish(m.raw)
+        # Keep time running so that the last demands reach their fusion deadlines.
+        end = messages[-1].t_ns + 3_000_000_000
+        t = messages[-1].t_ns
+        while t < end:
+            launcher.check()
+            t += 20_000_000
+            clock(t)
+            rclpy.spin_once(node, timeout_sec=0.02 / rtf)
+    finally:
+        node.destroy_node()
+        launcher.stop()
+        if owns:
+            rclpy.try_shutdown()
+    return new_bag
+
+
+def compare(original: Path, replayed: Path) -> list[dict[str, Any]]:
+    """Per demand: the recorded and the replayed estimate and how far apart they are."""
+
+    def estimates(bag: Path) -> dict[int, Any]:
+        out: dict[int, Any] = {}
+        for m in read_bag(bag, {'/target_estimate'}):
+            out.setdefault(int(m.msg.demand_index), m.msg)
+        return out
+
+    a, b = estimates(original), estimates(replayed)
+    rows = []
+    for j in sorted(set(a) | set(b)):
+        ea, eb = a.get(j), b.get(j)
+        diff = math.nan
+        if ea is not None and eb is not None:
+            pa = np.array([ea.position.x, ea.position.y, ea.position.z])
+            pb = np.array([eb.position.x, eb.position.y, eb.position.z])
+            if np.all(np.isfinite(pa)) and np.all(np.isfinite(pb)):
+                diff = float(np.linalg.norm(pa - pb))
+        rows.append(
+            {
+                'index': j,
+                'recorded_status': None if ea is None else int(ea.status),
+                'replayed_status': None if eb is None else int(eb.status),
+                'position_difference': diff,
+                'recorded_cameras': [] if ea is None else list(ea.cameras_used),
+                'replayed_cameras': [] if eb is None else list(eb.cameras_used),
+            }
+        )
+    return rows

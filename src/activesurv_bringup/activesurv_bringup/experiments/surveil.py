@@ -1,0 +1,419 @@
+"""Continuous surveillance: objects cross the table one after another, for as long as it runs.
+
+``activesurv surveil`` runs the same node graph as an experiment, with three differences: the
+xy table carries a stream of objects (:class:`activesurv_sim.stream.ObjectStream`), the
+predictor gives each confirmed track an object id and its own demands (every
+``demand_interval`` from its entry, or its predicted crossings of ``demand_at`` lines), and
+the run ends at ``duration`` of simulated time or on SIGINT/SIGTERM. On the way out the
+xy table stops first (no new demands), fusion answers every open demand, and the recorder
+closes the bag; then ``results.json`` is written from the bag:
+``{"mode": "surveil", "objects": [{"id", "entered", "left", "path_kind", ...}], "demands":
+[... the experiment's keys + "object"]}``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import numpy as np
+
+from activesurv_bringup.errors import BagError, ConfigError
+from activesurv_bringup.experiments.experiment import Experiment, load_experiment
+from activesurv_bringup.experiments.graph import Progress, Until, graph_specs, run_graph
+from activesurv_bringup.experiments.options import RunOptions
+from activesurv_bringup.experiments.records import demand_record, msg_stamp, msg_vector
+from activesurv_bringup.rig.rigs import RigChoice
+from activesurv_common.sensor_model import SensorModel
+from activesurv_common.timeseries import TimeSeries
+from activesurv_launch.launcher import NodeSpec
+from activesurv_recording.bagio import read_bag, run_info
+from activesurv_sim.stream import PATH_KINDS, ObjectStream
+
+# Where the Set A cameras can serve (their placement covers the paper's tracking region).
+DEMAND_REGION = (0.10, 0.40, 0.0, 0.2)
+FIRST_ENTRY = 1.0  # s of simulated time when the first object enters
+
+
+@dataclass(frozen=True)
+class SurveilOptions:
+    """What a continuous session does (``activesurv surveil``).
+
+    Attributes:
+        duration: simulated seconds to run (None: until SIGINT/SIGTERM).
+        arrival_interval: s from one object's entry to the next's (at the earliest).
+        demand_interval: s between an object's demands, from its entry.
+        demand_at: x (m) of demand lines; if given, demands are their predicted crossings.
+        max_bag_duration: split the bag into files of this many s (0: one file).
+        system: the cameras' motion class.
+        seed: seeds the objects' paths and the image noise.
+        path_kinds: the path kinds objects are drawn from.
+        rig: the rig and calibration (``--rig``, ``--calibration``); None: the set-up is the
+            truth.
+    """
+
+    duration: float | None = None
+    arrival_interval: float = 30.0
+    demand_interval: float = 2.0
+    demand_at: tuple[float, ...] = ()
+    max_bag_duration: float = 0.0
+    system: str = 'fast'
+    seed: int = 1
+    path_kinds: tuple[str, ...] = PATH_KINDS
+    rig: RigChoice | None = None  # the simulated hardware and what the system is told
+
+    def __post_init__(self) -> None:
+        if self.duration is not None and not (
+            math.isfinite(self.duration) and self.duration > 0.0
+        ):
+            raise ConfigError(f'--duration must be > 0 s, got {self.duration}')
+        for name in ('arrival_interval', 'demand_interval'):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ConfigError(f'--{name.replace("_", "-")} must be > 0 s, got {v}')
+        if not (math.isfinite(self.max_bag_duration) and self.max_bag_duration >= 0.0):
+            raise ConfigError(f'--max-bag-duration must be >= 0 s, got {self.max_bag_duration}')
+        x0, x1 = 0.0, 0.5
+        for x in self.demand_at:
+            if not (math.isfinite(x) and x0 <= x <= x1):
+                raise ConfigError(f'--demand-at x={x}: a line must cross the table ({x0}..{x1} m)')
+        bad = [k for k in self.path_kinds if k not in PATH_KINDS]
+        if bad or not self.path_kinds:
+            raise ConfigError(
+                f'path kinds must be among {PATH_KINDS}, got {list(self.path_kinds)}'
+            )
+
+
+def parse_demand_at(texts: Sequence[str]) -> tuple[float, ...]:
+    """``x=0.25`` (a line x = 0.25 m) for each text.
+
+    Raises:
+        ConfigError: for anything else.
+    """
+    out = []
+    for text in texts:
+        key, _, value = text.partition('=')
+        try:
+            if key.strip() != 'x':
+                raise ValueError
+            out.append(float(value))
+        except ValueError:
+            raise ConfigError(f'--demand-at {text!r}: expected x=X (metres)') from None
+    return tuple(out)
+
+
+def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
+    """What the bag stores about the session (the stream is regenerated from it)."""
+    obj = exp.config['object']
+    return {
+        'mode': 'surveil',
+        'system': s.system,
+        'seed': s.seed,
+        'duration': s.duration,
+        'stream': {
+            'seed': s.seed,
+            'arrival_interval': s.arrival_interval,
+            'first_entry': FIRST_ENTRY,
+            'kinds': list(s.path_kinds),
+            'speed': float(obj['speed']),
+            'acceleration': float(obj['acceleration']),
+        },
+        'demands': {
+            'mode': 'lines' if s.demand_at else 'interval',
+            'interval': s.demand_interval,
+            'lines_x': list(s.demand_at),
+            'region': list(DEMAND_REGION),
+        },
+        'initial_poses': {c: [float(v) for v in q] for c, q in exp.setup.initial.items()},
+        'marker_radius': exp.setup.marker_radius,
+    }
+
+
+def surveil_specs(
+    exp: Experiment, bag: Path, s: SurveilOptions, opts: RunOptions
+) -> list[NodeSpec]:
+    """The experiment's node graph, turned continuous: streamed objects, per-object demands."""
+    specs = graph_specs(
+        exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin, preview_rate=opts.preview_rate
+    )
+    info = surveil_info(exp, s)
+    out = []
+    for spec in specs:
+        p = dict(spec.parameters)
+        if spec.name == 'recorder':
+            p.update(run_info=json.dumps(info), max_bag_duration=float(s.max_bag_duration))
+        elif spec.name == 'predictor':
+            p.pop('demand_times', None)
+            p.update(
+                demand_mode='lines' if s.demand_at else 'interval',
+                demand_interval=float(s.demand_interval),
+                demand_lines=[float(x) for x in s.demand_at] or [0.25],
+                demand_region=[float(v) for v in DEMAND_REGION],
+            )
+        elif spec.name == 'xy_table':
+            p.update(
+                path_type='stream',
+                stream_seed=int(s.seed),
+                arrival_interval=float(s.arrival_interval),
+                path_kinds=list(s.path_kinds),
+                start_time=FIRST_ENTRY,
+            )
+            p.pop('path_points', None)
+            p.pop('csv_file', None)
+        elif spec.name == 'fusion':
+            p.pop('journal', None)  # a session answers each demand once anyway
+        out.append(replace(spec, parameters=p))
+    return out
+
+
+class _Stop:
+    """SIGINT/SIGTERM end the session cleanly instead of killing the orchestrator."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _Stop:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._old[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self.requested = True
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._old.items():
+            signal.signal(sig, handler)
+
+
+def run_surveil(
+    out_dir: Path, s: SurveilOptions, options: RunOptions | None = None, progress: Progress = print
+) -> dict[str, Any]:
+    """Run a continuous session into ``out_dir`` (bag, logs, results.json); returns results.
+
+    Raises:
+        ConfigError: for bad options.
+        NodeDiedError: if a node dies.
+    """
+    opts = options or RunOptions()
+    exp = load_experiment('A', s.system, s.seed, rig=s.rig)
+    bag = out_dir / 'bag'
+    specs = surveil_specs(exp, bag, s, opts)
+    limit = (s.duration or 7 * 24 * 3600.0) / max(opts.rtf, 1e-3) * 1.5 + 120.0
+    last = [-1e9]
+
+    with _Stop() as stop:
+
+        def done(mon: Any) -> bool:
+            if stop.requested:
+                progress(
+                    f'signal received at simulated time {mon.sim_time:.1f} s: stopping (open '
+                    'demands are answered, the bag is closed)'
+                )
+                return True
+            return s.duration is not None and mon.sim_time >= s.duration
+
+        def report(mon: Any) -> str | None:
+            if mon.sim_time - last[0] < 10.0:
+                return None
+            last[0] = mon.sim_time
+            ok = sum(1 for e in mon.estimates.values() if int(e.status) == 0)
+            end = f' of {s.duration:.0f} s' if s.duration else ''
+            return (
+                f'simulated time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
+                f'answered, {ok} ok'
+            )
+
+        run_graph(exp, out_dir, opts, progress, until=Until(done, limit, report), specs=specs)
+    doc = evaluate_surveil(bag)
+    (out_dir / 'results.json').write_text(json.dumps(doc, indent=2) + '\n')
+    return doc
+
+
+def evaluate_surveil(bag: Path) -> dict[str, Any]:
+    """The results document of a continuous session, from its bag (split or not).
+
+    Every demand that got a capture request (a promise to the user) has a record; demands
+    withdrawn before their request (the object left first) have none.
+
+    Raises:
+        BagError: for a missing, damaged or foreign bag.
+    """
+    info = run_info(bag)
+    if info.get('mode') != 'surveil':
+        raise BagError(f'bag {bag} is not a surveil session (mode {info.get("mode")!r})')
+    truth = TimeSeries(6, capacity=10**7)
+    present = TimeSeries(1, capacity=10**7)
+    requests: dict[int, Any] = {}
+    observations: dict[int, list[Any]] = {}
+    estimates: dict[int, tuple[Any, int]] = {}
+    object_of: dict[int, int] = {}
+    confirmed: dict[int, float] = {}
+    end = 0.0
+    topics = {
+        '/object_state',
+        '/capture_request',
+        '/marker_observations',
+        '/target_estimate',
+        '/demand_horizon',
+    }
+    for m in read_bag(bag, topics):
+        end = max(end, m.t_ns * 1e-9)
+        if m.topic == '/object_state':
+            t = msg_stamp(m.msg)
+            truth.add(t, np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)])
+            present.add(t, [1.0 if m.msg.in_workspace else 0.0])
+        elif m.topic == '/demand_horizon':
+            for d in m.msg.demands:
+                oid = int(d.object_id)
+                object_of[int(d.index)] = oid
+                confirmed.setdefault(oid, msg_stamp(m.msg))
+        elif m.topic == '/capture_request':
+            requests.setdefault(int(m.msg.demand_index), m.msg)
+        elif m.topic == '/marker_observations':
+            observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
+        elif m.topic == '/target_estimate':
+            estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
+    model = SensorModel.load()
+    demands = []
+    for j in sorted(set(requests) | set(estimates)):
+        req = requests.get(j)
+        tj = (
+            float(req.demand_instant.sec) + 1e-9 * float(req.demand_instant.nanosec)
+            if req is not None
+            else msg_stamp(estimates[j][0])
+        )
+        s = truth.at(tj, hold=0.5)
+        if s is None:
+            continue
+        rec = demand_record(j, tj, s, req, observations.get(j, []), estimates.get(j), model)
+        doc = rec.to_json()
+        doc['object'] = object_of.get(j, 0)
+        demands.append(doc)
+    st = info['stream']
+    stream = ObjectStream(
+        int(st['seed']),
+        float(st['arrival_interval']),
+        float(st['first_entry']),
+        list(st['kinds']),
+        speed=float(st['speed']),
+        acceleration=float(st['acceleration']),
+    )
+    objects = []
+    for oid, t in sorted(confirmed.items()):
+        if oid == 0:
+            continue
+        p = stream.pass_at(t)
+        objects.append(
+            {
+                'id': oid,
+                'entered': None if p is None else p.entered,
+                'left': None if p is None or p.left > end else p.left,
+                'path_kind': None if p is None else p.kind,
+                'truth_id': None if p is None else p.id,
+                'confirmed': t,
+                'demands': sum(1 for d in demands if d['object'] == oid),
+            }
+        )
+    lat = [d['latency'] for d in demands if d.get('latency') is not None]
+    return {
+        'mode': 'surveil',
+        'system': info.get('system'),
+        'seed': info.get('seed'),
+        'demand_mode': info['demands']['mode'],
+        'simulated_seconds': end,
+        'objects': objects,
+        'demands': demands,
+        'summary': {
+            'demands': len(demands),
+            'ok': sum(1 for d in demands if d['status'] == 'ok'),
+            'objects': len(objects),
+            'latency_median_ms': 1e3 * statistics.median(lat) if lat else None,
+        },
+    }
+
+
+def session_table(doc: dict[str, Any]) -> str:
+    """One line per object: path kind, entry/exit, demands, ok, median errors and latency."""
+    head = (
+        f'{"object":>6} {"path":>13} {"entered [s]":>11} {"left [s]":>9} {"demands":>7} '
+        f'{"ok":>4} {"pos err [mm]":>12} {"latency [ms]":>12}'
+    )
+    lines = [head, '-' * len(head)]
+    rows = list(doc['objects']) + [{'id': None}]
+    for o in rows:
+        ds = [d for d in doc['demands'] if o['id'] is None or d['object'] == o['id']]
+        ok = [d for d in ds if d['status'] == 'ok']
+        err = [d['position_error'] for d in ok if d['position_error'] is not None]
+        lat = [d['latency'] for d in ds if d.get('latency') is not None]
+
+        def num(v: float | None, w: int, scale: float = 1.0, fmt: str = '.3f') -> str:
+            return f'{"-":>{w}}' if v is None else f'{v * scale:>{w}{fmt}}'
+
+        med_err = statistics.median(err) if err else None
+        med_lat = statistics.median(lat) if lat else None
+        if o['id'] is None:
+            lines.append('-' * len(head))
+            name, kind, entered, left = 'all', '', None, None
+        else:
+            name, kind, entered, left = str(o['id']), str(o['path_kind']), o['entered'], o['left']
+        lines.append(
+            f'{name:>6} {kind:>13} {num(entered, 11, fmt=".1f")} {num(left, 9, fmt=".1f")} '
+            f'{len(ds):>7} {len(ok):>4} {num(med_err, 12, 1e3)} {num(med_lat, 12, 1e3, ".0f")}'
+        )
+    return '\n'.join(lines)
+
+
+def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
+    """``report.md`` and ``session.png`` (error and latency of every demand over time)."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for o in doc['objects']:
+        ds = [d for d in doc['demands'] if d['object'] == o['id']]
+        ts = [d['t'] for d in ds]
+        err = [np.nan if d['position_error'] is None else 1e3 * d['position_error'] for d in ds]
+        lat = [np.nan if d.get('latency') is None else 1e3 * d['latency'] for d in ds]
+        label = f'object {o["id"]} ({o["path_kind"]})'
+        axes[0].plot(ts, err, 'o', ms=4, label=label)
+        axes[1].plot(ts, lat, 'o', ms=4)
+    axes[0].set_ylabel('position error [mm]')
+    axes[1].set_ylabel('latency [ms]')
+    axes[1].set_xlabel('simulated time [s]')
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if doc['objects']:
+        axes[0].legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    png = out_dir / 'session.png'
+    fig.savefig(png, dpi=90)
+    plt.close(fig)
+    s = doc['summary']
+    lines = [
+        '# activesurv continuous surveillance',
+        '',
+        f'{s["objects"]} objects, {s["demands"]} demands ({doc["demand_mode"]}), '
+        f'{s["ok"]} ok, over {doc["simulated_seconds"]:.0f} s of simulated time; '
+        f'system {doc["system"]}, seed {doc["seed"]}. Failed demands:',
+        '',
+    ]
+    failed = [d for d in doc['demands'] if d['status'] != 'ok']
+    lines += [
+        f'- demand {d["index"]} (object {d["object"]}): {d["status"]}: {d["reason"]}'
+        for d in failed
+    ] or ['- none']
+    lines += ['', '```', session_table(doc), '```', '', f'![session]({png.name})', '']
+    path = out_dir / 'report.md'
+    path.write_text('\n'.join(lines))
+    return path

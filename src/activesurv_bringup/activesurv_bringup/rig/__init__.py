@@ -1,0 +1,1 @@
+"""Rigs and commissioning: rig files, calibrations, commissioning through the graph, the lab."""

@@ -1,0 +1,75 @@
+"""A run's rig and calibration from its command line, commissioning the rig first when no
+calibration is given (once per rig, cached next to the runs)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.rig.commission import run_commission
+from activesurv_bringup.rig.rigs import (
+    CALIBRATIONS,
+    RigChoice,
+    calibration_dir,
+    default_calibration,
+    resolve_calibration,
+    resolve_rig,
+)
+from activesurv_sim.rig import Rig
+
+# What commissioning a simulated rig takes on a two-core machine (measured: 4-6 min).
+COMMISSIONING_ESTIMATE = 'about 5 min on two cores'
+
+
+def commissioned(cache: Path, rig: Rig, progress: Callable[[str], None] = print) -> Path:
+    """The rig's calibration in ``cache``, commissioned first if there is none yet.
+
+    A commissioning stopped by SIGINT leaves its partial work in ``<dir>.interrupted`` (never
+    read as a calibration); the next run commissions again.
+    """
+    path = calibration_dir(cache, rig)
+    if (path / 'commission.json').is_file():
+        progress(f'calibration of {rig.name}: {path} (commissioned before)')
+        return path
+    if path.exists():  # an unfinished commissioning of another process: leave it alone
+        path = path.with_name(f'{path.name}-{int(time.time())}')
+    progress(
+        f'commissioning {rig.name} into {path} ({COMMISSIONING_ESTIMATE}; once per rig, '
+        'later runs reuse it)'
+    )
+    try:
+        run_commission(path, rig, progress=progress)
+    except KeyboardInterrupt:
+        kept = path.with_name(f'{path.name}.interrupted-{int(time.time())}')
+        if path.exists():
+            path.rename(kept)
+        progress(f'commissioning interrupted: partial work moved to {kept} (not a calibration)')
+        raise
+    return path
+
+
+def choose(
+    rig: str | Path | None,
+    calibration: str | None,
+    rig_seed: int,
+    cache: Path | None = None,
+    progress: Callable[[str], None] = print,
+) -> RigChoice:
+    """A run's rig and calibration from its command line (see the module docstring).
+
+    Args:
+        rig: a rig file, or None for the nominal rig perturbed with ``rig_seed``.
+        calibration: ``truth``, ``nominal``, a calibration directory, or None: the rig
+            commissioned once into ``cache/calibrations/`` (unless ``ACTIVESURV_CALIBRATION``).
+    """
+    the_rig, source = resolve_rig(rig, rig_seed)
+    cal_choice = calibration or default_calibration()
+    if cal_choice is None:
+        if cache is None:
+            raise ConfigError('commissioning needs a directory for its calibration')
+        cal_choice = str(commissioned(cache, the_rig, progress))
+    cal = resolve_calibration(cal_choice, the_rig)
+    label = cal_choice if cal_choice in CALIBRATIONS else str(Path(cal_choice).resolve())
+    return RigChoice(the_rig, source, cal, label)

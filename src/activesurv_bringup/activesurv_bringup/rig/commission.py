@@ -1,0 +1,589 @@
+"""``activesurv commission``: calibrate the rig through the node graph, as a lab would.
+
+Over the same topics a real rig has: each camera's stage takes ``<cam>/stage/goal`` and reports
+``<cam>/stage/joint_states``; the xy table is a two-axis stage (``xy_table/stage/goal``, joints
+``table_x``, ``table_y``) carrying the boards (:class:`activesurv_sim.board.BoardFixture`);
+cameras publish ``<cam>/image_raw`` and ``camera_info`` and are triggered by
+``capture_request``. The procedure (:func:`activesurv_bringup.rig.board_views.collect_stations`)
+moves stages and table, waits for them to settle, captures and finds the board; then
+:mod:`activesurv_imaging.commissioning` fits each camera, and the overhead camera's mapping
+comes from the top board over a grid of table positions.
+
+In simulation (``--rig``) the graph is simulated stages and cameras playing the rig (wall
+clock); with ``--live`` the commissioner talks to whatever runs (``stage_bridge`` nodes, camera
+drivers). It writes ``CALDIR/<camera>.yaml``, ``<camera>_mount.yaml``, ``overhead.yaml``,
+``overhead_pose.yaml`` and ``commission.json`` (per camera the reprojection RMS, and in
+simulation each estimate's error against the rig).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from activesurv_bringup.errors import ConfigError, NodeDiedError
+from activesurv_bringup.files import new_output_dir
+from activesurv_bringup.rig.board_views import (
+    Look,
+    board_corners,
+    collect_stations,
+    simulated_look,
+    simulated_overhead_look,
+)
+from activesurv_bringup.rig.rigs import nominal
+from activesurv_bringup.specs import stage_spec
+from activesurv_common.calibration import Calibration
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform
+from activesurv_common.mount import CameraMount
+from activesurv_dispatch.sensors import Setup
+from activesurv_imaging.calibration import board_points, find_corners
+from activesurv_imaging.commissioning import (
+    BoardSighting,
+    c1_offset,
+    commission_camera,
+    order_like,
+    pixel_error,
+)
+from activesurv_imaging.errors import CalibrationError
+from activesurv_launch.launcher import Launcher, NodeSpec
+from activesurv_sim.board import BoardFixture
+from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
+from activesurv_sim.rig import Rig
+
+Array = NDArray[np.float64]
+Progress = Callable[[str], None]
+TABLE_RANGE = ((0.0, 0.5), (0.0, 0.2))  # m, Table I
+C1_TURN = 0.02  # rad: keeps a centred board whole in a 7-degree view
+OVERHEAD_GRID = ((0.05, 0.15, 0.25, 0.35, 0.45), (0.02, 0.10, 0.18))
+
+
+def commission_specs(rig_file: Path, setup: Setup, nominal_dir: Path) -> list[NodeSpec]:
+    """Simulated stages, table and cameras playing the rig (wall clock, Table I speeds)."""
+    wall = {'use_sim_time': False}
+    specs = [
+        NodeSpec(
+            'xy_table_stage',
+            'activesurv_sim.sim_stage_node',
+            parameters={
+                **wall,
+                'camera_id': TABLE_ID,
+                'joints': list(TABLE_JOINTS),
+                'kinds': ['linear', 'linear'],
+                'min': [TABLE_RANGE[0][0], TABLE_RANGE[1][0]],
+                'max': [TABLE_RANGE[0][1], TABLE_RANGE[1][1]],
+                'initial': [0.25, 0.10],
+                'motion_class': 'hardware',
+                'publish_rate': 20.0,
+            },
+        ),
+        camera_spec('overhead', rig_file, nominal_dir, {'camera_type': 'overhead'}),
+    ]
+    for i, s in enumerate(setup.sensors):
+        cid = s.camera_id
+        specs.append(stage_spec(s, setup.initial[cid], 'hardware', 20.0, sim_time=False))
+        specs.append(camera_spec(cid, rig_file, nominal_dir, {'seed': 500 + i}))
+    return specs
+
+
+def camera_spec(cid: str, rig_file: Path, nominal_dir: Path, extra: dict[str, Any]) -> NodeSpec:
+    return NodeSpec(
+        f'{cid}_camera',
+        'activesurv_sim.sim_camera_node',
+        parameters={
+            'use_sim_time': False,
+            'camera_id': cid,
+            'payload': 'board',
+            'rig_file': str(rig_file),
+            # the driver's factory calibration: nominal optics
+            'camera_info_file': str(nominal_dir / f'{cid}.yaml'),
+            'frame_rate': 0.0,
+            'render_ahead': False,
+            'state_hold': 1.0,
+            **extra,
+        },
+    )
+
+
+class Commissioner:
+    """Drives stages and table, triggers cameras and collects what they see (one rclpy node)."""
+
+    def __init__(self, setup: Setup, cameras: Sequence[str], settle_timeout: float = 20.0) -> None:
+        from rclpy.node import Node
+        from sensor_msgs.msg import CameraInfo, Image, JointState
+
+        from activesurv_common.ros import qos, topics
+        from activesurv_interfaces.msg import CaptureRequest, StageGoal
+
+        self.node = Node('commissioner')
+        self.setup = setup
+        self.settle_timeout = settle_timeout
+        self.states: dict[str, Any] = {}
+        self.images: dict[str, list[Any]] = {}
+        self.infos: dict[str, Any] = {}
+        self.goal_pubs = {}
+        self.requests = 0
+        self._capture = self.node.create_publisher(
+            CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS
+        )
+        self._StageGoal, self._CaptureRequest = StageGoal, CaptureRequest
+        for stage in [TABLE_ID, *cameras]:
+            self.goal_pubs[stage] = self.node.create_publisher(
+                StageGoal, topics.goal(stage), qos.GOAL
+            )
+            self.node.create_subscription(
+                JointState, topics.joint_states(stage), self._keep(self.states, stage), qos.STATE
+            )
+        for cid in ['overhead', *cameras]:
+            self.images[cid] = []
+            self.node.create_subscription(
+                Image, topics.image(cid), self.images[cid].append, qos.STATE
+            )
+            self.node.create_subscription(
+                CameraInfo, topics.camera_info(cid), self._keep(self.infos, cid), qos.SENSOR
+            )
+
+    @staticmethod
+    def _keep(store: dict[str, Any], key: str) -> Callable[[Any], None]:
+        def keep(msg: Any) -> None:
+            store[key] = msg
+
+        return keep
+
+    def now(self) -> float:
+        return float(self.node.get_clock().now().nanoseconds) * 1e-9
+
+    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        import rclpy
+
+        deadline = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > deadline:
+                return False
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+        return True
+
+    def _at(self, stage: str, names: Sequence[str], q: Array, tol: float) -> bool:
+        msg = self.states.get(stage)
+        if msg is None:
+            return False
+        table = dict(zip(msg.name, msg.position, strict=False))
+        speed = dict(zip(msg.name, msg.velocity, strict=False))
+        return all(
+            n in table and abs(table[n] - v) <= tol and abs(speed.get(n, 0.0)) < 1e-9
+            for n, v in zip(names, q, strict=True)
+        )
+
+    def move(self, stage: str, names: Sequence[str], q: Array, tol: float = 1e-5) -> None:
+        """Send a goal and wait until the stage reports it there (within ``tol``, m or rad: a
+        controller rounds to its steps), at rest. Captures use the positions reported then.
+
+        Raises:
+            NodeDiedError: if it does not get there in ``settle_timeout``.
+        """
+        if self._at(stage, names, q, tol):
+            return
+        msg = self._StageGoal()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.joint_names = list(names)
+        msg.positions = [float(v) for v in q]
+        msg.max_velocities = [0.0] * len(names)
+        self.goal_pubs[stage].publish(msg)
+        if not self.spin_until(lambda: self._at(stage, names, q, tol), self.settle_timeout):
+            raise NodeDiedError(
+                f'{stage} did not reach {np.round(q, 5).tolist()} in {self.settle_timeout:.0f} s'
+            )
+
+    def capture(self, camera_id: str, stages: Sequence[str]) -> NDArray[np.uint8]:
+        """Trigger ``camera_id`` (and latch the stages) a moment from now; its frame.
+
+        Raises:
+            NodeDiedError: if no frame comes.
+        """
+        from activesurv_common.ros.conversions import image_to_gray, sec_to_time, time_to_sec
+
+        t = self.now() + 0.15
+        msg = self._CaptureRequest()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.demand_index = self.requests
+        self.requests += 1
+        msg.demand_instant = sec_to_time(t)
+        msg.camera_ids = [camera_id, *stages]
+        self.images[camera_id].clear()
+        self._capture.publish(msg)
+
+        def arrived() -> bool:
+            return any(time_to_sec(m.header.stamp) >= t - 1e-6 for m in self.images[camera_id])
+
+        if not self.spin_until(arrived, 5.0):
+            raise NodeDiedError(f'{camera_id} sent no frame for a capture request in 5 s')
+        frame = next(m for m in self.images[camera_id] if time_to_sec(m.header.stamp) >= t - 1e-6)
+        return np.asarray(image_to_gray(frame), dtype=np.uint8)
+
+    def camera_model(self, camera_id: str, fallback: CameraModel) -> CameraModel:
+        """What the camera's driver says of its optics (camera_info), else ``fallback``."""
+        from activesurv_common.ros.conversions import model_from_camera_info
+
+        self.spin_until(lambda: camera_id in self.infos, 2.0)
+        if camera_id not in self.infos:
+            return fallback
+        return model_from_camera_info(self.infos[camera_id], camera_id)
+
+    def look(self, camera_id: str, fixture: BoardFixture) -> Look:
+        names = self.setup.sensor(camera_id).joint_names
+
+        def look(q: Array, x: float, y: float) -> Array | None:
+            self.move(camera_id, names, q)
+            self.move(TABLE_ID, TABLE_JOINTS, np.array([x, y]))
+            image = self.capture(camera_id, (camera_id, TABLE_ID))
+            return find_corners(image, fixture.squares)
+
+        return look
+
+    def look_overhead(self, fixture: BoardFixture) -> Callable[[float, float], Array | None]:
+        def look(x: float, y: float) -> Array | None:
+            self.move(TABLE_ID, TABLE_JOINTS, np.array([x, y]))
+            return find_corners(self.capture('overhead', (TABLE_ID,)), fixture.top_squares)
+
+        return look
+
+    def close(self) -> None:
+        self.node.destroy_node()
+
+
+def commission_dynamic(
+    look: Look,
+    start: CameraModel,
+    nominal_mount: CameraMount,
+    fixture: BoardFixture,
+) -> tuple[CameraModel, CameraMount, dict[str, Any]]:
+    """One dynamic camera: stations, fit, and the eq. C1 check; returns (model, mount, report).
+
+    Args:
+        look: shows the board at a table position to the camera at stage positions.
+        start: the intrinsics to start from (what the driver says, or nominal).
+        nominal_mount: the mount as designed.
+    """
+    stations = collect_stations(look, start, nominal_mount, fixture)
+    board = board_corners(fixture)
+    fit = commission_camera(start, nominal_mount, stations, board)
+    model, mount = fit.camera, fit.mount
+    report: dict[str, Any] = {
+        'reprojection_rms_px': fit.rms,
+        'corner_noise_px': fit.noise.corner,
+        'sighting_noise_px': fit.noise.sighting,
+        # one standard deviation, from the noise model (what the views carry)
+        'std': {
+            'focal_length_relative': float(fit.std[0] / model.fx),
+            'principal_point_px': [float(fit.std[2]), float(fit.std[3])],
+            'base_m': [float(v) for v in fit.std[5:8]],
+            'rotation_centre_offset_m': [float(v) for v in fit.std[10:12]],
+        },
+        'stations': len(stations),
+        'sightings': sum(len(s.sightings) for s in stations),
+    }
+    # Eq. C1 (Appendix C), the paper's check: the board fixed, the camera turned by 0.02 rad.
+    middle = [st for st in stations if st.sightings][len(stations) // 2 :][:1]
+    pairs = []
+    for st in middle:
+        T_cam = mount.pose_from_joints(st.joints).inverse()
+        centre = np.array([model.cx, model.cy])
+        centred = sorted(
+            st.sightings, key=lambda s: float(np.linalg.norm(s.corners.mean(axis=0) - centre))
+        )
+        for sighting in centred[:3]:  # the turn moves the image by ~100 px: keep it whole
+            T = sighting.T_world_board
+            x, y = float(T.t[0] - fixture.offset[0]), float(T.t[1] - fixture.offset[1])
+            turned = st.joints.copy()
+            turned[-1] += C1_TURN
+            before, after = look(st.joints, x, y), look(turned, x, y)
+            if before is None or after is None:
+                continue
+            expected = model.project((board @ T.R.T + T.t) @ T_cam.R.T + T_cam.t)
+            pairs.append(
+                (
+                    BoardSighting(T, order_like(before, expected)),
+                    BoardSighting(T, order_like(after, expected)),
+                    C1_TURN,
+                )
+            )
+    try:
+        rco = c1_offset(pairs, model, board, mount.pitch)
+        report['c1_rotation_centre_offset'] = [float(v) for v in rco]
+    except CalibrationError as exc:
+        report['c1_rotation_centre_offset'] = None
+        report['c1_note'] = str(exc)
+    report['joints'] = [[float(v) for v in st.joints] for st in stations]
+    return model, mount, report
+
+
+def commission_overhead(
+    look: Callable[[float, float], Array | None],
+    nominal: CameraModel,
+    nominal_pose: Transform,
+    fixture: BoardFixture,
+) -> tuple[CameraModel, Transform, dict[str, Any]]:
+    """The overhead camera from the top board over a grid of table positions: one planar
+    target at the top markers' height. Looking straight down at one plane, focal length and
+    height trade exactly (only f/Z is seen) and the principal point trades with the tilt, so
+    those stay nominal and the pose and k1 take up the rest: what the overhead locator needs
+    is the image-to-table mapping at the markers' height, and that is what is fitted."""
+    import cv2
+
+    top = board_points(fixture.top_squares, fixture.top_square_size)
+    plane_pts, image_pts = [], []
+    Tc = nominal_pose.inverse()
+    for x in OVERHEAD_GRID[0]:
+        for y in OVERHEAD_GRID[1]:
+            corners = look(x, y)
+            if corners is None:
+                continue
+            T = fixture.top_pose(x, y)
+            world = top @ T.R.T + T.t
+            corners = order_like(corners, nominal.project(world @ Tc.R.T + Tc.t))
+            plane_pts.append(world - [0.0, 0.0, fixture.top_height])
+            image_pts.append(corners)
+    if len(plane_pts) < 4:
+        raise CalibrationError(f'the overhead camera found the top board {len(plane_pts)} times')
+    obj = np.vstack(plane_pts).astype(np.float32)
+    img = np.vstack(image_pts).astype(np.float32).reshape(-1, 1, 2)
+    flags = (
+        cv2.CALIB_USE_INTRINSIC_GUESS
+        | cv2.CALIB_FIX_PRINCIPAL_POINT
+        | cv2.CALIB_FIX_FOCAL_LENGTH
+        | cv2.CALIB_ZERO_TANGENT_DIST
+        | cv2.CALIB_FIX_K2
+        | cv2.CALIB_FIX_K3
+    )
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [obj], [img], (nominal.width, nominal.height), nominal.K.copy(), np.zeros(5), flags=flags
+    )
+    R, _ = cv2.Rodrigues(rvecs[0])
+    T_cam_plane = Transform(
+        np.asarray(R, dtype=np.float64), np.asarray(tvecs[0], dtype=np.float64).reshape(3)
+    )
+    plane = Transform(np.eye(3), np.array([0.0, 0.0, fixture.top_height]))
+    pose = plane.compose(T_cam_plane.inverse())
+    model = CameraModel(
+        nominal.width,
+        nominal.height,
+        np.asarray(K, dtype=np.float64),
+        np.asarray(dist, dtype=np.float64).reshape(-1)[:5],
+        'overhead',
+    )
+    return model, pose, {'reprojection_rms_px': float(rms), 'sightings': len(plane_pts)}
+
+
+def errors_against(
+    rig: Rig, cid: str, model: CameraModel, mount: CameraMount, joints: Sequence[Array]
+) -> dict[str, float]:
+    """Each estimate against the rig (simulation only)."""
+    t = rig.camera(cid)
+    return {
+        'focal_length_relative': float(abs(model.fx / t.camera.fx - 1.0)),
+        'principal_point_px': float(np.max(np.abs(model.K[:2, 2] - t.camera.K[:2, 2]))),
+        'principal_point_x_px': float(model.cx - t.camera.cx),  # signed
+        'principal_point_y_px': float(model.cy - t.camera.cy),
+        'k1': float(abs(model.dist[0] - t.camera.dist[0])),
+        'base_m': float(np.max(np.abs(mount.base - t.mount.base))),
+        'rotation_centre_offset_m': float(np.max(np.abs(mount.offset - t.mount.offset))),
+        'yaw_offset_rad': float(abs(mount.yaw_offset - t.mount.yaw_offset)),
+        'pitch_rad': float(abs(mount.pitch - t.mount.pitch)),
+        'pixel_error_px': max(
+            pixel_error(t.camera, t.true_mount(), model, mount, q) for q in joints
+        )
+        if joints
+        else math.nan,
+    }
+
+
+def plane_mapping_error(
+    truth: CameraModel, true_pose: Transform, model: CameraModel, pose: Transform, z: float
+) -> float:
+    """Largest distance (m) over the table between where points of the plane at height ``z``
+    are and where the calibrated camera maps their pixels back onto that plane."""
+    x, y = np.meshgrid(np.linspace(0.0, 0.5, 11), np.linspace(0.0, 0.2, 5))
+    world = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, z)])
+    Tt = true_pose.inverse()
+    px = truth.project(world @ Tt.R.T + Tt.t)
+    rays = model.rays(px) @ pose.R.T  # world directions
+    lam = (z - pose.t[2]) / rays[:, 2]
+    back = pose.t + lam[:, None] * rays
+    return float(np.max(np.linalg.norm(back[:, :2] - world[:, :2], axis=1)))
+
+
+def write_calibration(out: Path, cal: Calibration, report: dict[str, Any]) -> Path:
+    """The calibration files and ``commission.json`` into ``out``."""
+    cal.save(out)
+    path = out / 'commission.json'
+    path.write_text(json.dumps(report, indent=2) + '\n')
+    return path
+
+
+def check_cameras(setup: Setup, cameras: Sequence[str] | None) -> list[str]:
+    known = [s.camera_id for s in setup.sensors]
+    chosen = list(cameras) if cameras else known
+    unknown = sorted(set(chosen) - set(known))
+    if unknown:
+        raise ConfigError(f'no camera {unknown} in the set-up; it has {known}')
+    return chosen
+
+
+def commission_all(
+    dynamic: Callable[[str], tuple[Look, CameraModel]],
+    overhead_look: Callable[[float, float], Array | None],
+    all_cameras: Sequence[str],
+    chosen: Sequence[str],
+    rig: Rig | None,
+    progress: Progress,
+    name: str,
+) -> tuple[Calibration, dict[str, Any]]:
+    """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
+
+    Args:
+        dynamic: per camera id, how it looks at the board and the intrinsics to start from.
+        overhead_look: the overhead camera looking at the top board at a table position.
+        rig: the simulated truth, to report each estimate's error (None when live).
+    """
+    nominal_cal = nominal().truth()
+    fixture = BoardFixture()
+    models = dict(nominal_cal.cameras)
+    mounts = dict(nominal_cal.mounts)
+    report: dict[str, Any] = {'rig': None if rig is None else rig.name, 'cameras': {}}
+    for cid in all_cameras:
+        if cid not in chosen:
+            report['cameras'][cid] = {'commissioned': False, 'reprojection_rms_px': None}
+            continue
+        t0 = time.monotonic()
+        look, start = dynamic(cid)
+        model, mount, rep = commission_dynamic(look, start, nominal_cal.mounts[cid], fixture)
+        models[cid], mounts[cid] = model, mount
+        rep['commissioned'] = True
+        rep['seconds'] = round(time.monotonic() - t0, 1)
+        joints = [np.array(q) for q in rep.pop('joints')]
+        if rig is not None:
+            rep['error'] = errors_against(rig, cid, model, mount, joints)
+        report['cameras'][cid] = rep
+        progress(
+            f'{cid}: {rep["sightings"]} board views at {rep["stations"]} stations, '
+            f'reprojection RMS {rep["reprojection_rms_px"]:.3f} px, {rep["seconds"]:.0f} s'
+        )
+    over, pose, rep = commission_overhead(
+        overhead_look, nominal_cal.overhead, nominal_cal.overhead_pose, fixture
+    )
+    if rig is not None:
+        rep['error'] = {
+            'table_mapping_m': plane_mapping_error(
+                rig.overhead, rig.overhead_pose, over, pose, fixture.top_height
+            )
+        }
+    report['overhead'] = rep
+    progress(f'overhead: reprojection RMS {rep["reprojection_rms_px"]:.3f} px')
+    return Calibration(name, models, mounts, over, pose), report
+
+
+def commission_offline(
+    rig: Rig, progress: Progress = lambda _: None
+) -> tuple[Calibration, dict[str, Any]]:
+    """The same procedure on rendered views without the node graph (benchmarks, studies)."""
+    nominal_cal = nominal().truth()
+    fixture = BoardFixture()
+    cameras = sorted(rig.cameras)
+    return commission_all(
+        lambda c: (simulated_look(rig, c, fixture), nominal_cal.cameras[c]),
+        simulated_overhead_look(rig, fixture),
+        cameras,
+        cameras,
+        rig,
+        progress,
+        f'offline commissioning of {rig.name}',
+    )
+
+
+def run_commission(
+    out: Path,
+    rig: Rig | None,
+    cameras: Sequence[str] | None = None,
+    progress: Progress = print,
+    startup_timeout: float = 60.0,
+) -> dict[str, Any]:
+    """Commission the rig into ``out`` (new or empty); returns ``commission.json``.
+
+    Args:
+        out: the calibration directory to write.
+        rig: the rig to simulate, or None for ``--live`` (stages, table and cameras already
+            running, on this ROS domain).
+        cameras: the dynamic cameras to commission (default: all); the others keep nominal
+            values, marked so in ``commission.json``.
+
+    Raises:
+        ConfigError: for unknown cameras; NodeDiedError: if the graph does not answer.
+    """
+    import os
+
+    import rclpy
+
+    from activesurv_dispatch.sensors import load_setup
+    from activesurv_sim.rig import save_rig
+
+    setup = load_setup(motion='fast')
+    chosen = check_cameras(setup, cameras)
+    new_output_dir(out)
+    work = out / 'work'
+    nominal_cal = nominal().truth()
+    nominal_cal.save(work / 'factory')  # what the camera drivers are shipped with
+    launcher = None
+    if rig is not None:
+        save_rig(rig, work / 'rig.yaml')
+        specs = commission_specs(work / 'rig.yaml', setup, work / 'factory')
+        launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
+    owns = not rclpy.ok()
+    if owns:
+        rclpy.init()
+    com = Commissioner(setup, chosen)
+    started = time.monotonic()
+    try:
+        if launcher is not None:
+            launcher.start()
+        stages = [TABLE_ID, *chosen]
+        up = com.spin_until(
+            lambda: (
+                all(s in com.states for s in stages) and (launcher is None or _check(launcher))
+            ),
+            startup_timeout,
+        )
+        if not up:
+            missing = sorted(set(stages) - set(com.states))
+            raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
+        progress(f'stages up: {stages}')
+        fixture = BoardFixture()
+        cal, report = commission_all(
+            lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
+            com.look_overhead(fixture),
+            [s.camera_id for s in setup.sensors],
+            chosen,
+            rig,
+            progress,
+            str(out),
+        )
+        report['seconds'] = round(time.monotonic() - started, 1)
+        write_calibration(out, cal, report)
+        return report
+    finally:
+        com.close()
+        if launcher is not None:
+            launcher.stop()
+        if owns:
+            rclpy.try_shutdown()
+
+
+def _check(launcher: Launcher) -> bool:
+    launcher.check()  # raises NodeDiedError if a process died
+    return True

@@ -1,0 +1,133 @@
+"""The ``live_view`` node: the graph's topics over the Foxglove WebSocket protocol.
+
+A Foxglove (or Lichtblick) client on ``ws://HOST:PORT`` sees the run as it happens: camera
+images (thinned to ``image_rate``), their marker annotations, the frame tree, dispatch markers,
+demand points, estimates, stage states, diagnostics
+(:data:`activesurv_liveview.live.DEFAULT_TOPICS`).
+Messages are forwarded as they are (CDR) with their ROS 2 definitions as schemas; topics are
+picked up as their publishers appear, with the QoS those offer (latched topics arrive too).
+The server is foxglove-sdk's (subprotocol ``foxglove.sdk.v1``).
+
+Parameters: see ``config/live_view.yaml``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
+
+from activesurv_common.ros import qos
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_liveview.live import DEFAULT_TOPICS, LatchedCache, LiveFilter
+from activesurv_recording.bagio import message_class, recording_qos, typestore
+from activesurv_recording.load_node import cdr_header
+
+PARAMS = (
+    Param('port', 8765, 'WebSocket port', minimum=1),
+    Param('host', '127.0.0.1', 'address to listen on (0.0.0.0: every interface)'),
+    Param('image_rate', 15.0, 'most images per second per image topic (0: all)', minimum=0.0),
+    Param('topics', list(DEFAULT_TOPICS), 'topics to serve (shell patterns)'),
+    Param('discovery_period', 1.0, 's between looks for new topics', above=0.0),
+)
+
+
+class LiveViewNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        import foxglove
+
+        super().__init__('live_view', **kwargs)
+        declare(self, PARAMS)
+        v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
+        self.filter = LiveFilter(list(v['topics']), float(v['image_rate']))
+        self.ts = typestore()
+        self.channels: dict[str, Any] = {}
+        self.latched = LatchedCache()
+        self.server = foxglove.start_server(
+            name='activesurv',
+            host=str(v['host']),
+            port=int(v['port']),
+            server_listener=_listener(self.latched),
+        )
+        self.get_logger().info(f'Foxglove live view on ws://{v["host"]}:{self.server.port}')
+        self.create_timer(
+            float(v['discovery_period']),
+            self._discover,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
+        self.create_timer(0.2, self._replay_latched, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._discover()
+
+    def _replay_latched(self) -> None:
+        # A viewer that subscribes late still gets the latched messages, as a ROS subscriber would.
+        for topic, messages in self.latched.due():
+            for data in messages:
+                self.channels[topic].log(data, log_time=time.time_ns())
+
+    def _discover(self) -> None:
+        import foxglove
+
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.channels or not types or not self.filter.wanted(topic):
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+                definition = self.ts.generate_msgdef(type_name, ros_version=2)[0]
+            except (ImportError, AttributeError, ValueError, KeyError) as exc:
+                self.get_logger().warning(f'cannot serve {topic} [{type_name}]: {exc}')
+                self.channels[topic] = None
+                continue
+            schema = foxglove.Schema(name=type_name, encoding='ros2msg', data=definition.encode())
+            channel = foxglove.Channel(topic, schema=schema, message_encoding='cdr')
+            self.channels[topic] = channel
+            profile, _ = recording_qos(publishers, qos.published_depth(topic))
+            if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+                self.latched.latch(topic, qos.published_depth(topic) or 1)
+            self.create_subscription(cls, topic, self._callback(topic, channel), profile, raw=True)
+            self.get_logger().info(f'serving {topic} [{type_name}]')
+
+    def _callback(self, topic: str, channel: Any) -> Any:
+        image = topic.endswith('image_raw')
+
+        def callback(data: bytes) -> None:
+            # Images are thinned by their stamps (steady, whatever the transport's jitter).
+            try:
+                when = cdr_header(bytes(data[:64]))[0] if image else time.monotonic()
+            except ValueError:
+                when = time.monotonic()
+            if self.filter.keep(topic, when):
+                channel.log(bytes(data), log_time=time.time_ns())
+                self.latched.remember(topic, bytes(data))
+
+        return callback
+
+    def destroy_node(self) -> None:
+        self.server.stop()
+        super().destroy_node()
+
+
+def _listener(latched: LatchedCache) -> Any:
+    """The server's subscription events (called from its own thread) go to ``latched``."""
+    from foxglove.websocket import ServerListener
+
+    class Listener(ServerListener):
+        def on_subscribe(self, client: Any, channel: Any) -> None:
+            latched.subscribed(str(channel.topic))
+
+    return Listener()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('live_view', LiveViewNode, args, errors=(OSError, RuntimeError))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

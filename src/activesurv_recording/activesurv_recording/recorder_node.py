@@ -1,0 +1,200 @@
+"""The ``recorder`` node: records every topic of the graph to an MCAP rosbag2 bag.
+
+Like ``ros2 bag record -a`` (not on PyPI): a topic is recorded once a publisher of it appears,
+subscribed to match its publishers (reliable / transient local only if they all are) and noted
+in ``metadata.yaml`` with the QoS profiles they offer (what ``replay`` and ``ros2 bag play``
+offer again); its own status topic never. Messages are written as received (serialized bytes),
+stamped on simulated time with the last /clock tick extrapolated at the ticks' rate
+(:class:`~activesurv_common.timeseries.ClockEstimate`: latencies are read off these times).
+Streams in ``thin_topics`` (the overhead camera) are thinned to ``image_rate`` Hz; every other
+message is kept. Message definitions go into the bag; ``run_info`` (JSON) is stored on
+``/activesurv/run_info``. On SIGINT/SIGTERM the bag is closed cleanly.
+
+Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
+exclude (topics), discovery_period (s), run_info (JSON), flush_period (s), max_bag_duration (s:
+split into bag_0.mcap, bag_1.mcap, ... listed in one metadata.yaml; 0: one file).
+
+A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
+every flush writes a complete MCAP chunk and fsyncs it; ``activesurv bag reindex BAG``
+rebuilds the index and ``metadata.yaml`` from what is on disk.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import String
+
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.timeseries import ClockEstimate
+from activesurv_recording.bagio import (
+    RUN_INFO_TOPIC,
+    BagWriter,
+    SplitBagWriter,
+    message_class,
+    open_writer,
+    recording_qos,
+)
+from activesurv_recording.errors import BagError
+
+STATUS_TOPIC = topics.RECORDER_STATUS
+
+
+PARAMS = (
+    Param('output', '', 'bag directory (must not exist)'),
+    Param('image_rate', 2.0, 'Hz per thinned topic; 0: all', minimum=0.0),
+    Param('exclude', ['/rosout', '/parameter_events'], 'topics not recorded'),
+    Param('discovery_period', 0.5, 's between topic discoveries', above=0.0),
+    Param('run_info', '{}', 'JSON stored in the bag'),
+    Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
+    Param(
+        'max_bag_duration', 0.0, 'split the bag into files of this many s (0: one)', minimum=0.0
+    ),
+    Param(
+        'thin_topics',
+        ['/overhead/image_raw', '/overhead/camera_info'],
+        'streams thinned to image_rate',
+    ),
+)
+
+
+class RecorderNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('recorder', **kwargs)
+        declare(self, PARAMS)
+        g = self.get_parameter
+        output = str(g('output').value)
+        if not output:
+            raise BagError('recorder needs the output parameter (a new bag directory)')
+        split, self.latched = float(g('max_bag_duration').value), set[str]()
+        self.bag: BagWriter | SplitBagWriter | None = (
+            SplitBagWriter(Path(output), split, self.latched)
+            if split
+            else open_writer(Path(output))
+        )
+        self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
+        self.exclude = set(g('exclude').value)
+        self.subscribed: dict[str, str] = {}
+        self.last_image: dict[str, float] = {}
+        self.counts: dict[str, int] = {}
+        self.thin = set(g('thin_topics').value)
+        self.sim_time = bool(g('use_sim_time').value)
+        self.clock = ClockEstimate()
+        self._lock = threading.Lock()
+        try:
+            info = json.loads(str(g('run_info').value))
+        except ValueError as exc:
+            raise BagError(f'run_info is not JSON: {exc}') from exc
+        # Bags of this recorder note the QoS their publishers offered (replay trusts them).
+        info.setdefault('recorder', {})['qos'] = 'offered'
+        self.bag.write_json(RUN_INFO_TOPIC, 0, info)
+        # Discovery runs on the wall clock: with simulated time nothing would tick before /clock.
+        self.create_timer(
+            float(g('discovery_period').value),
+            self._discover,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
+        self.exclude.add(STATUS_TOPIC)  # never our own status
+        self._discover()
+        flush_period = float(g('flush_period').value)
+        if not flush_period > 0.0:
+            raise BagError(f'flush_period must be > 0 s, got {flush_period}')
+        self.create_timer(flush_period, self._flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._status_pub = self.create_publisher(String, STATUS_TOPIC, qos.STATUS)
+
+    def _flush(self) -> None:
+        with self._lock:
+            if self.bag is not None:
+                self.bag.flush()
+            counts = dict(self.counts)
+        # Orchestrators wait on this before stopping the graph (nothing left unrecorded).
+        self._status_pub.publish(String(data=json.dumps(counts)))
+
+    def _qos(self, topic: str) -> tuple[QoSProfile, Any] | None:
+        publishers = self.get_publishers_info_by_topic(topic)
+        return recording_qos(publishers, qos.published_depth(topic)) if publishers else None
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscribed or topic in self.exclude or not types:
+                continue
+            qos_pair = self._qos(topic)
+            if qos_pair is None:
+                continue  # only subscribers so far: wait for a publisher to know its QoS
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f'cannot record {topic}: unknown type {type_name}')
+                self.subscribed[topic] = type_name
+                continue
+            profile, offered = qos_pair
+            if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+                self.latched.add(topic)  # a split bag repeats its last message in every file
+            with self._lock:
+                assert self.bag is not None
+                self.bag.connection(topic, type_name, offered)
+            self.create_subscription(
+                cls, topic, self._callback(topic, type_name), profile, raw=True
+            )
+            self.subscribed[topic] = type_name
+            self.get_logger().info(f'recording {topic} [{type_name}]')
+
+    def _callback(self, topic: str, type_name: str) -> Any:
+        thinned = topic in self.thin
+        is_clock = topic == topics.CLOCK and self.sim_time
+
+        def callback(data: bytes) -> None:
+            with self._lock:  # callbacks may run concurrently (multi-threaded executors)
+                if self.bag is None:
+                    return
+                if is_clock:
+                    c = deserialize_message(data, ClockMsg).clock
+                    self.clock.tick(c.sec + 1e-9 * c.nanosec, time.monotonic())
+                now = self._stamp()
+                if thinned and self.image_period:
+                    if now * 1e-9 - self.last_image.get(topic, -1e18) < self.image_period - 1e-6:
+                        return
+                    self.last_image[topic] = now * 1e-9
+                self.bag.write_raw(topic, type_name, now, data)
+                self.counts[topic] = self.counts.get(topic, 0) + 1
+
+        return callback
+
+    def _stamp(self) -> int:
+        """Nanoseconds to log a message received now with."""
+        est = self.clock.now(time.monotonic()) if self.sim_time else None
+        node_now = int(self.get_clock().now().nanoseconds)
+        return node_now if est is None else max(round(est * 1e9), node_now)
+
+    def close(self) -> None:
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
+        if self.bag is not None:
+            self.bag.close()
+            self.get_logger().info(
+                f'bag closed: {sum(self.counts.values())} messages on {len(self.counts)} topics'
+            )
+            self.bag = None
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('recorder', RecorderNode, args, on_stop=RecorderNode.close, errors=(BagError,))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -7,7 +7,6 @@ in a temporary directory. This runs before any test module imports rclpy.
 
 from __future__ import annotations
 
-import fcntl
 import os
 import shutil
 import tempfile
@@ -17,27 +16,16 @@ from typing import IO, Any
 
 import pytest
 
-_DOMAIN_RANGE = range(11, 100)
+from activesurv_launch.domains import claim_domain_id
+
 _held: list[IO[str]] = []
 _owned_home: list[Path] = []
 
 
 def _claim_domain_id() -> int:
-    lock_dir = Path(tempfile.gettempdir()) / 'activesurv-ros-domains'
-    lock_dir.mkdir(exist_ok=True)
-    start = os.getpid() % len(_DOMAIN_RANGE)
-    ids = list(_DOMAIN_RANGE)
-    for k in range(len(ids)):
-        domain = ids[(start + k) % len(ids)]
-        handle = open(lock_dir / f'{domain}.lock', 'w')  # noqa: SIM115 - held for the session
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        _held.append(handle)
-        return domain
-    raise RuntimeError('no free ROS_DOMAIN_ID for this test session')
+    domain, handle = claim_domain_id()  # the lock is held for the session
+    _held.append(handle)
+    return domain
 
 
 def pytest_configure(config: pytest.Config) -> None:

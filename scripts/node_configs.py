@@ -31,10 +31,11 @@ NODES: dict[str, tuple[str, str]] = {
     'sim_stage': ('activesurv_sim', 'sim_stage_node'),
     'xy_table': ('activesurv_sim', 'xy_table_node'),
     'stage_bridge': ('activesurv_stages', 'stage_bridge_node'),
-    'recorder': ('activesurv_bringup', 'recorder_node'),
-    'image_load': ('activesurv_bringup', 'load_node'),
-    'frames': ('activesurv_bringup', 'frames_node'),
-    'live_view': ('activesurv_bringup', 'live_view_node'),
+    'recorder': ('activesurv_recording', 'recorder_node'),
+    'image_load': ('activesurv_recording', 'load_node'),
+    'frames': ('activesurv_liveview', 'frames_node'),
+    'live_view': ('activesurv_liveview', 'live_view_node'),
+    'table_runner': ('activesurv_hardware', 'table_runner_node'),
 }
 
 
@@ -47,8 +48,9 @@ def render(node: str, package: str, module: str) -> str:
     params = importlib.import_module(f'{package}.{module}').PARAMS
     lines = [
         f'# Parameters of the {node} node, with their defaults (generated from {module}.PARAMS',
-        '# by scripts/node_configs.py). Use it as a template:',
-        f'#   ros2 run {package} {node} --ros-args --params-file {node}.yaml',
+        '# by scripts/node_configs.py). Use it as a template (the console script is in the',
+        "# venv's bin/; with a full ROS 2 install also `ros2 run PACKAGE NODE`):",
+        f'#   {node} --ros-args --params-file {node}.yaml   # package {package}',
         f'{node}:',
         '  ros__parameters:',
     ]

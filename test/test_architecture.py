@@ -33,6 +33,8 @@ ALLOWED: dict[str, set[str]] = {
     'activesurv_sim': {'activesurv_common', 'activesurv_stages'},
     'activesurv_launch': {'activesurv_common'},
     'activesurv_recording': {'activesurv_common'},
+    # Paths and the object model are the simulator's; a real table runs them too.
+    'activesurv_hardware': {'activesurv_common', 'activesurv_stages', 'activesurv_sim'},
     'activesurv_liveview': {
         'activesurv_common',
         'activesurv_recording',
@@ -41,7 +43,12 @@ ALLOWED: dict[str, set[str]] = {
     },
     'activesurv_bringup': set(PACKAGES),
 }
-OPENCV_USERS = {'activesurv_sim', 'activesurv_imaging', 'activesurv_bringup'}
+OPENCV_USERS = {
+    'activesurv_sim',
+    'activesurv_imaging',
+    'activesurv_bringup',
+    'activesurv_hardware',
+}
 ROS_TOP_LEVEL = ('rclpy', 'activesurv_interfaces', 'builtin_interfaces', 'rosgraph_msgs')
 NODE_LINE_LIMIT = 200
 

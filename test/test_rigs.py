@@ -76,7 +76,7 @@ def test_truth_nominal_and_calibrated_runs_on_a_perturbed_rig(tmp_path: Path) ->
     docs = {}
     for cal in ('truth', 'nominal'):
         docs[cal] = experiment(
-            'A', 'fast', tmp_path / cal, seed=5, mode='lockstep', calibration=cal
+            'A', 'fast', tmp_path / cal, seed=5, mode='lockstep', calibration=cal, rig_seed=5
         )
         assert docs[cal]['rig'] == 'perturbed-5'
         assert docs[cal]['calibration'] == cal

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -42,6 +43,7 @@ from activesurv_bringup import __version__, arguments
 from activesurv_bringup.errors import USER_ERRORS, ConfigError
 from activesurv_bringup.experiments.options import PROCESSES, RunOptions
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
+from activesurv_launch.domains import isolate
 
 SYSTEMS = ('static', 'medium', 'fast')
 DEFAULT_SEED = 1
@@ -554,6 +556,14 @@ def main(argv: list[str] | None = None) -> int:
     made = out is not None and not Path(out).exists()
     try:
         arguments.check(args)
+        if simulated(args):
+            claim = isolate(os.environ)
+            if not claim.chosen_by_user:
+                print(
+                    f'activesurv {args.command}: simulated run on ROS domain {claim.domain_id} '
+                    '(a free one, localhost discovery; set ROS_DOMAIN_ID to choose)',
+                    flush=True,
+                )
         _dispatch(args)
     except USER_ERRORS + (OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
@@ -565,6 +575,13 @@ def main(argv: list[str] | None = None) -> int:
         if made and out is not None:
             _drop_if_empty(Path(out))
     return 0
+
+
+def simulated(args: argparse.Namespace) -> bool:
+    """Whether the command runs the simulator (and so must not share a real rig's domain)."""
+    if args.command == 'commission':
+        return not args.live
+    return args.command in ('experiment', 'surveil', 'demo', 'replay')
 
 
 def _drop_if_empty(out: Path) -> None:

@@ -1,19 +1,30 @@
 """The imager's session core: which frame and which camera pose answer each capture request.
 
-A capture request names a demand instant ``t_j``. The answer uses the frame stamped within
-``frame_tolerance`` of ``t_j`` and the camera pose at the frame's stamp, from the stage joint
-states interpolated there. It waits (returns nothing yet) while the frame, the camera_info or a
-stage state at or after the frame's stamp is still to come, and gives up with an explicit
-failure ``frame_timeout`` seconds after ``t_j``: every request gets exactly one observation.
+A capture request names a demand instant ``t_j``. The answer uses the frame exposed within
+``frame_tolerance`` of ``t_j`` and the camera pose at the frame's exposure, from the stage joint
+states interpolated there.
+
+Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j``
+itself. A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame
+nearest ``t_j`` is taken (within half a frame period, once a frame after ``t_j`` has come, so
+that the nearest is known), its offset ``frame stamp - t_j`` is reported, and the marker
+position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``).
+A frame's stamp minus ``exposure_delay`` is its exposure instant (a driver that stamps frames on
+arrival stamps them after exposure and read-out).
+
+It waits (returns nothing yet) while the frame, the camera_info or a stage state at or after
+the frame's stamp is still to come, and gives up with an explicit failure ``frame_timeout``
+seconds after ``t_j``: every request gets exactly one observation.
 The ``imager`` node feeds it from topics; lockstep mode feeds it directly, so both modes measure
 the same way.
 """
 
 from __future__ import annotations
 
+import math
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Generic, TypeVar
 
 import numpy as np
@@ -24,7 +35,7 @@ from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
-from activesurv_imaging.errors import VisionErrors
+from activesurv_imaging.errors import ImagingError, VisionErrors
 from activesurv_imaging.observation import (
     Observation,
     ObservationStatus,
@@ -64,6 +75,30 @@ class ImagerConfig:
     inject_noise: float = 0.0
     inject_flip: bool = False
     exact_state: bool = False
+    trigger: str = 'hardware'
+    frame_rate: float = 0.0
+    exposure_delay: float = 0.0
+    motion_correction: bool = True
+
+    def __post_init__(self) -> None:
+        if self.trigger not in TRIGGERS:
+            raise ImagingError(f'trigger must be one of {TRIGGERS}, got {self.trigger!r}')
+        if self.trigger == 'free' and not (
+            math.isfinite(self.frame_rate) and self.frame_rate > 0.0
+        ):
+            raise ImagingError(f'free-running needs frame_rate > 0, not {self.frame_rate}')
+        if not (math.isfinite(self.exposure_delay) and self.exposure_delay >= 0.0):
+            raise ImagingError(f'exposure_delay must be >= 0 s, got {self.exposure_delay}')
+
+    @property
+    def tolerance(self) -> float:
+        """Largest |exposure - demand instant| accepted: half a period when free-running."""
+        if self.trigger == 'free':
+            return 0.5 / self.frame_rate
+        return self.frame_tolerance
+
+
+TRIGGERS = ('hardware', 'software', 'free')
 
 
 @dataclass(frozen=True)
@@ -73,6 +108,7 @@ class Request:
     index: int
     demand_time: float
     prior_normal: NDArray[np.float64] | None
+    velocity: NDArray[np.float64] | None = None
 
 
 class CaptureCore(Generic[F]):
@@ -124,14 +160,19 @@ class CaptureCore(Generic[F]):
     def set_camera(self, camera: CameraModel) -> None:
         self.camera = camera
 
-    def request(self, index: int, demand_time: float, prior_normal: ArrayLike | None) -> None:
-        prior = None if prior_normal is None else np.asarray(prior_normal, dtype=np.float64)
-        if prior is not None and not np.all(np.isfinite(prior)):
-            prior = None
-        self.pending.append(Request(index, demand_time, prior))
+    def request(
+        self,
+        index: int,
+        demand_time: float,
+        prior_normal: ArrayLike | None,
+        velocity: ArrayLike | None = None,
+    ) -> None:
+        prior = _finite(prior_normal)
+        self.pending.append(Request(index, demand_time, prior, _finite(velocity)))
 
     def add_frame(self, stamp: float, frame: F) -> None:
-        self.frames.add(stamp, frame)
+        """A frame by its stamp (its exposure instant is ``stamp - exposure_delay``)."""
+        self.frames.add(stamp - self.config.exposure_delay, frame)
 
     def add_joints(self, stamp: float, q: ArrayLike) -> bool:
         """Add a stage state; False (ignored) if it is not finite or has the wrong size."""
@@ -166,13 +207,18 @@ class CaptureCore(Generic[F]):
     def _answer(self, r: Request, now: float) -> Observation | None:
         c = self.config
         timed_out = now > r.demand_time + c.frame_timeout
-        hit = self.frames.closest(r.demand_time, c.frame_tolerance)
+        stamps = self.frames.stamps()
+        if c.trigger == 'free' and not timed_out and (not stamps or stamps[-1] < r.demand_time):
+            return None  # a nearer frame may still come: wait for one exposed after t_j
+        hit = self.frames.closest(r.demand_time, c.tolerance)
         if hit is None:
             if not timed_out:
                 return None
+            near = min(stamps, key=lambda s: abs(s - r.demand_time), default=None)
+            seen = '' if near is None else f' (nearest {1e3 * (near - r.demand_time):+.1f} ms)'
             why = (
-                f'no frame within {c.frame_tolerance:g} s of the demand instant '
-                f'{r.demand_time:.3f} s'
+                f'no frame within {c.tolerance:g} s of the demand instant '
+                f'{r.demand_time:.3f} s{seen}'
             )
             return self._fail(r, r.demand_time, ObservationStatus.NO_IMAGE, why, None)
         stamp, frame = hit
@@ -216,4 +262,13 @@ class CaptureCore(Generic[F]):
             r.prior_normal,
             c.inject_flip,
         )
+        obs = replace(obs, frame_offset=stamp - r.demand_time)
+        if c.motion_correction and r.velocity is not None and obs.position is not None:
+            shift = r.velocity * (r.demand_time - stamp)
+            obs = replace(obs, position=obs.position + shift, motion_correction=shift)
         return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
+
+
+def _finite(v: ArrayLike | None) -> NDArray[np.float64] | None:
+    a = None if v is None else np.asarray(v, dtype=np.float64)
+    return a if a is not None and np.all(np.isfinite(a)) else None

@@ -50,6 +50,8 @@ class Observation:
     distance: float = math.nan
     bearing: float = math.nan
     camera_pose: Transform | None = None
+    frame_offset: float = 0.0  # s: exposure instant minus demand instant
+    motion_correction: Array | None = None  # m added for the object's motion over the offset
 
 
 def failed(

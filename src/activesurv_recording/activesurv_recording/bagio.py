@@ -265,6 +265,14 @@ class BagMessage:
     raw: bytes
 
 
+def strip_namespace(topic: str, namespace: str) -> str:
+    """The name ``topic`` is recorded under: a rig's namespace left out (``/rig1/x`` -> ``/x``),
+    so that the bags of a namespaced hardware run read as every other run's."""
+    ns = namespace.strip('/')
+    prefix = f'/{ns}/' if ns else ''
+    return '/' + topic[len(prefix) :] if prefix and topic.startswith(prefix) else topic
+
+
 def needs_reindex(bag: Path) -> bool:
     """A bag directory with MCAP data but no ``metadata.yaml`` (its writer died)."""
     bag = Path(bag)

@@ -8,16 +8,11 @@ stamped on simulated time with the last /clock tick extrapolated at the ticks' r
 (:class:`~activesurv_common.timeseries.ClockEstimate`: latencies are read off these times).
 Streams in ``thin_topics`` (the overhead camera) are thinned to ``image_rate`` Hz; every other
 message is kept. Message definitions go into the bag; ``run_info`` (JSON) is stored on
-``/activesurv/run_info``. On SIGINT/SIGTERM the bag is closed cleanly.
-
-Parameters: output (bag directory, must not exist), image_rate (Hz, 0: all), thin_topics,
-exclude (topics), discovery_period (s), run_info (JSON), flush_period (s), max_bag_duration (s:
-split into bag_0.mcap, bag_1.mcap, ... listed in one metadata.yaml; 0: one file).
-
-A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
+``/activesurv/run_info``. On SIGINT/SIGTERM the bag is closed cleanly. Parameters: see
+``config/recorder.yaml`` (``max_bag_duration`` splits the bag into bag_0.mcap, bag_1.mcap, ...
+of one metadata.yaml; ``strip_namespace`` records a rig's /NS/x as /x). A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
 every flush writes a complete MCAP chunk and fsyncs it; ``activesurv bag reindex BAG``
-rebuilds the index and ``metadata.yaml`` from what is on disk.
-"""
+rebuilds the index and ``metadata.yaml`` from what is on disk."""
 
 from __future__ import annotations
 
@@ -46,6 +41,7 @@ from activesurv_recording.bagio import (
     message_class,
     open_writer,
     recording_qos,
+    strip_namespace,
 )
 from activesurv_recording.errors import BagError
 
@@ -56,6 +52,7 @@ PARAMS = (
     Param('output', '', 'bag directory (must not exist)'),
     Param('image_rate', 2.0, 'Hz per thinned topic; 0: all', minimum=0.0),
     Param('exclude', ['/rosout', '/parameter_events'], 'topics not recorded'),
+    Param('strip_namespace', '', "a rig's namespace: /NS/x is recorded as /x"),
     Param('discovery_period', 0.5, 's between topic discoveries', above=0.0),
     Param('run_info', '{}', 'JSON stored in the bag'),
     Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
@@ -86,6 +83,7 @@ class RecorderNode(Node):
         )
         self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
         self.exclude = set(g('exclude').value)
+        self.namespace = str(g('strip_namespace').value)
         self.subscribed: dict[str, str] = {}
         self.last_image: dict[str, float] = {}
         self.counts: dict[str, int] = {}
@@ -145,7 +143,7 @@ class RecorderNode(Node):
                 self.latched.add(topic)  # a split bag repeats its last message in every file
             with self._lock:
                 assert self.bag is not None
-                self.bag.connection(topic, type_name, offered)
+                self.bag.connection(strip_namespace(topic, self.namespace), type_name, offered)
             self.create_subscription(
                 cls, topic, self._callback(topic, type_name), profile, raw=True
             )
@@ -154,6 +152,7 @@ class RecorderNode(Node):
 
     def _callback(self, topic: str, type_name: str) -> Any:
         thinned = topic in self.thin
+        name = strip_namespace(topic, self.namespace)
         is_clock = topic == topics.CLOCK and self.sim_time
 
         def callback(data: bytes) -> None:
@@ -168,7 +167,7 @@ class RecorderNode(Node):
                     if now * 1e-9 - self.last_image.get(topic, -1e18) < self.image_period - 1e-6:
                         return
                     self.last_image[topic] = now * 1e-9
-                self.bag.write_raw(topic, type_name, now, data)
+                self.bag.write_raw(name, type_name, now, data)
                 self.counts[topic] = self.counts.get(topic, 0) + 1
 
         return callback

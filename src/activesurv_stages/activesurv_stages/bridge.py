@@ -6,8 +6,9 @@
 * The worker polls positions at ``poll_rate`` and keeps the latest snapshot (SI units).
 * Recovery: a communication error (unplugged port, silence, a reset mid-reply) closes the port
   and reconnects every ``reconnect_period`` until it works. An axis that reports no reference
-  position (first connection, or after a controller reset) is homed, and the last goal is sent
-  again. Garbage lines are counted and skipped by the driver.
+  position (first connection, or after a controller reset) is homed only when asked
+  (``home_on_connect``), and the last goal is then sent again; otherwise its goals are refused
+  with a reason. Garbage lines are counted and skipped by the driver.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ class BridgeWorker:
         axes: list[AxisConfig],
         poll_rate: float = 20.0,
         reconnect_period: float = 1.0,
-        home_on_connect: bool = True,
+        home_on_connect: bool = False,
     ) -> None:
         if not axes:
             raise StageError('a bridge needs at least one axis')
@@ -89,6 +90,7 @@ class BridgeWorker:
             'goals_sent': 0,
             'garbage_lines': 0,
             'protocol_errors': 0,
+            'refused_unreferenced': 0,
         }
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -128,6 +130,33 @@ class BridgeWorker:
         with self._lock:
             self._pending[joint] = goal
         return goal
+
+    def submit_goals(self, items: list[tuple[str, float, float | None]]) -> list[str]:
+        """Queue the goals of one message together (a controller that moves several axes sends
+        them as one straight move); each refused goal is reported, the others still queued.
+
+        Returns:
+            The reasons of the refused goals (nothing of them is queued or sent).
+        """
+        refused: list[str] = []
+        checked: list[Goal] = []
+        for joint, position, velocity in items:
+            axis = self.axes.get(joint)
+            if axis is None:
+                refused.append(f'unknown joint {joint!r}; this bridge drives {list(self.axes)}')
+                continue
+            try:
+                raw_p, raw_v = axis.checked_goal(position, velocity)
+            except LimitError as exc:
+                with self._lock:
+                    self._counters['limit_rejections'] += 1
+                refused.append(str(exc))
+                continue
+            checked.append(Goal(joint, position, velocity, raw_p, raw_v))
+        with self._lock:
+            for goal in checked:
+                self._pending[goal.joint] = goal
+        return refused
 
     def request_stop(self, joint: str) -> None:
         with self._lock:
@@ -216,6 +245,7 @@ class BridgeWorker:
         if unhomed and self.home_on_connect:
             self._home(unhomed)
             reports = self._reports()
+            unhomed = [j for j, r in reports.items() if r.needs_home]
         now = time.monotonic()
         with self._lock:
             prev, prev_t = dict(self._snap.positions), self._snap.stamp
@@ -235,7 +265,21 @@ class BridgeWorker:
             self._pending.clear()
         for j in stops:
             driver.stop(self.axes[j].axis)
+        refused = [g for g in goals if g.joint in unhomed]
+        together = getattr(driver, 'move_together', None)
+        if together is not None and len(goals) - len(refused) > 1 and not refused:
+            # One controller moving several axes (the xy table): one straight-line move, not
+            # one axis after the other in the controller's planner.
+            self._send_together(goals)
+            return
         for i, goal in enumerate(goals):
+            if goal.joint in unhomed:  # never homed without being asked: refuse, send nothing
+                self._error(
+                    f'{goal.joint} has no reference position: goal refused (home it: '
+                    'stage_bridge home_on_connect:=true)',
+                    'refused_unreferenced',
+                )
+                continue
             try:
                 self._send(goal)
             except (CommunicationError, ProtocolError):
@@ -264,6 +308,35 @@ class BridgeWorker:
             for j in joints:
                 if j in self._last_goal and j not in self._pending:
                     self._pending[j] = self._last_goal[j]
+
+    def _send_together(self, goals: list[Goal]) -> None:
+        assert self._driver is not None
+        targets: dict[str, float] = {}
+        speeds: list[float] = []
+        for goal in goals:
+            axis = self.axes[goal.joint]
+            si = axis.to_si(goal.raw_position)
+            if not (
+                math.isfinite(si)
+                and axis.limits.min_position - 1e-9 <= si <= axis.limits.max_position + 1e-9
+            ):
+                self._error(
+                    f'{goal.joint}: refused to send a goal outside the limits', 'limit_rejections'
+                )
+                return
+            targets[axis.axis] = goal.raw_position
+            if goal.raw_speed is not None:
+                speeds.append(goal.raw_speed)
+        speed = math.sqrt(sum(v * v for v in speeds)) if speeds else None
+        try:
+            self._driver.move_together(targets, speed)  # type: ignore[attr-defined]
+        except ControllerRejectedError as exc:
+            self._error(f'{", ".join(g.joint for g in goals)}: {exc}', 'rejected_goals')
+            return
+        with self._lock:
+            self._counters['goals_sent'] += len(goals)
+            for goal in goals:
+                self._last_goal[goal.joint] = goal
 
     def _send(self, goal: Goal) -> None:
         assert self._driver is not None

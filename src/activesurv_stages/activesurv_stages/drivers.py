@@ -333,6 +333,14 @@ class GrblDriver:
         feed = 60.0 * (speed if speed is not None else 1000.0)
         self.command(grbl.format_jog(axis, position, feed).decode())
 
+    def move_together(self, targets: dict[str, float], speed: float | None) -> None:
+        """Move several axes along one straight line at ``speed`` (units/s along it)."""
+        unknown = [a for a in targets if a not in self.letters]
+        if unknown:
+            raise StageError(f'no GRBL axes {unknown} (found {self.letters})')
+        feed = 60.0 * (speed if speed is not None else 1000.0)
+        self.command(grbl.format_jog_together(targets, feed).decode())
+
     def stop(self, axis: str) -> None:
         self._line().write(grbl.JOG_CANCEL)
 

@@ -20,6 +20,7 @@ Real time: the emulators run on ``time.monotonic()``.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import select
 import threading
@@ -511,7 +512,11 @@ class GrblEmulator(EmulatorBase):
             if not 0.0 <= target <= spec.travel:
                 self.send('error:15')  # soft limits: the jog is refused
                 return
+        # A jog of several axes is one straight line at the feed along it (GRBL's planner).
+        deltas = {k: abs(v - self.sims[k].state(now)[0]) for k, v in values.items()}
+        length = math.sqrt(sum(d * d for d in deltas.values()))
         for letter, target in values.items():
-            self.sims[letter].command(now, target, feed / 60.0)
+            share = deltas[letter] / length if length > 0.0 and len(values) > 1 else 1.0
+            self.sims[letter].command(now, target, max(feed / 60.0 * share, 1e-6))
         self._held = False
         self.send('ok')

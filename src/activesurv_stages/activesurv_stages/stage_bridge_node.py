@@ -32,7 +32,7 @@ PARAMS = (
     Param('config_file', '', 'controller YAML (required)'),
     Param('camera_id', 'cam1', 'topic prefix'),
     Param('port', '', 'serial port; overrides the file'),
-    Param('home_on_connect', True, 'home unreferenced axes'),
+    Param('home_on_connect', False, 'home unreferenced axes on connect (only when asked)'),
     Param('reconnect_period', 1.0, 's between reconnects', above=0.0),
 )
 
@@ -73,12 +73,10 @@ class StageBridgeNode(Node):
         self.get_logger().info(f'{cfg.protocol} controller on {cfg.port}: joints {self.joints}')
 
     def _on_goal(self, msg: StageGoal) -> None:
-        for joint, position, velocity in goal_items(msg):
-            try:
-                self.worker.submit_goal(joint, position, velocity)
-            except StageError as exc:
-                self.refusals += 1
-                self.get_logger().warning(f'goal refused, nothing sent: {exc}')
+        # One message's joints are queued together: one move on a multi-axis controller.
+        for reason in self.worker.submit_goals(list(goal_items(msg))):
+            self.refusals += 1
+            self.get_logger().warning(f'goal refused, nothing sent: {reason}')
 
     def _publish(self) -> None:
         snap = self.worker.snapshot()

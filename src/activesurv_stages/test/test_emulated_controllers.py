@@ -143,7 +143,11 @@ def test_bridge_moves_and_recovers_from_every_fault(
     driver_cls = ZaberDriver if protocol == 'zaber' else GrblDriver
     joint = axes[0].joint
     w = BridgeWorker(
-        lambda: driver_cls(str(emu.link), timeout=0.5), axes, poll_rate=25, reconnect_period=0.2
+        lambda: driver_cls(str(emu.link), timeout=0.5),
+        axes,
+        poll_rate=25,
+        reconnect_period=0.2,
+        home_on_connect=True,  # asked: recovery includes homing again after a reset
     )
     w.start()
     try:
@@ -218,5 +222,49 @@ def test_zaber_stall_is_reported_as_a_fault(zaber_emu: ZaberEmulator) -> None:
         # A new goal is refused by the stalled device (reported), until it is homed again.
         w.submit_goal('cam1_x', 0.0)
         _wait(w, lambda s: s.counters['rejected_goals'] >= 1, 5.0)
+    finally:
+        w.shutdown()
+
+
+@pytest.mark.parametrize('protocol', ['zaber', 'grbl'])
+def test_a_bridge_never_homes_unless_asked(
+    protocol: str, zaber_emu: ZaberEmulator, grbl_emu: GrblEmulator
+) -> None:
+    emu = zaber_emu if protocol == 'zaber' else grbl_emu
+    axes = ZABER_AXES if protocol == 'zaber' else GRBL_AXES
+    driver_cls = ZaberDriver if protocol == 'zaber' else GrblDriver
+    w = BridgeWorker(lambda: driver_cls(str(emu.link), timeout=0.5), axes, poll_rate=25)
+    w.start()
+    try:
+        _wait(w, lambda s: bool(s.positions))
+        w.submit_goal(axes[0].joint, 0.01, 0.02)
+        s = _wait(w, lambda s: s.counters['refused_unreferenced'] >= 1, 5.0)
+        assert 'no reference position' in s.last_error
+        assert s.counters['homings'] == 0
+        sent = b''.join(emu.received)
+        assert b'home' not in sent
+        assert b'$H' not in sent
+        assert b'move abs' not in sent
+        assert b'$J=' not in sent
+    finally:
+        w.shutdown()
+
+
+def test_grbl_moves_the_axes_of_one_goal_in_one_command(grbl_emu: GrblEmulator) -> None:
+    w = BridgeWorker(
+        lambda: GrblDriver(str(grbl_emu.link), timeout=0.5),
+        GRBL_AXES,
+        poll_rate=25,
+        home_on_connect=True,
+    )
+    w.start()
+    try:
+        _wait(w, lambda s: s.state is LinkState.READY)
+        x, y = GRBL_AXES[0].joint, GRBL_AXES[1].joint
+        refused = w.submit_goals([(x, 0.02, 0.01), (y, 0.01, 0.005)])
+        assert refused == []
+        _wait(w, lambda s: abs(s.positions[x] - 0.02) < 1e-4 and abs(s.positions[y] - 0.01) < 1e-4)
+        jogs = [r for r in grbl_emu.received if r.startswith(b'$J=')]
+        assert any(b'X' in j and b'A' in j for j in jogs), jogs  # one command, both axes
     finally:
         w.shutdown()

@@ -206,6 +206,7 @@ def test_stage_bridge_node_against_emulator(
         parameter_overrides=[
             Parameter('config_file', value=str(tmp_path / 'zaber.yaml')),
             Parameter('reconnect_period', value=0.2),
+            Parameter('home_on_connect', value=True),  # the emulator starts unreferenced
         ]
     )
     peer = rclpy_context.create_node('bridge_test_peer')

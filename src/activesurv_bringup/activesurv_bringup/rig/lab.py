@@ -99,7 +99,12 @@ def _bridge(name: str, camera_id: str, config: dict[str, Any], out: Path) -> Nod
     return NodeSpec(
         f'{name}_bridge',
         'activesurv_stages.stage_bridge_node',
-        parameters={'config_file': str(path), 'camera_id': camera_id, 'reconnect_period': 0.5},
+        parameters={
+            'config_file': str(path),
+            'camera_id': camera_id,
+            'reconnect_period': 0.5,
+            'home_on_connect': True,  # the lab's own emulated controllers: homing is harmless
+        },
     )
 
 

@@ -18,8 +18,9 @@ from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from activesurv_common.camera_model import CameraModel
-from activesurv_common.errors import CalibrationError, ImageFormatError
+from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.images import to_gray
 from activesurv_common.mount import CameraMount
 from activesurv_interfaces.msg import ObjectState
 
@@ -71,34 +72,21 @@ def model_from_camera_info(msg: CameraInfo, name: str) -> CameraModel:
 
 
 def image_to_gray(msg: Image) -> np.ndarray:
-    """An 8-bit grey array from mono8/rgb8/bgr8 images.
+    """An 8-bit grey array from an image of any encoding camera drivers publish
+    (:data:`activesurv_common.images.ENCODINGS`: mono8/16, rgb8/bgr8/rgba8/bgra8, bayer_*,
+    yuv422).
 
     Raises:
         ImageFormatError: for other encodings or a buffer that does not match the header.
     """
-    channels = {'mono8': 1, '8UC1': 1, 'rgb8': 3, 'bgr8': 3}.get(msg.encoding)
-    if channels is None:
-        raise ImageFormatError(
-            f'unsupported image encoding {msg.encoding!r} (use mono8/rgb8/bgr8)'
-        )
-    expected = msg.height * msg.step
-    data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
-    if (
-        msg.height == 0
-        or msg.width == 0
-        or data.size < expected
-        or msg.step < msg.width * channels
-    ):
-        raise ImageFormatError(
-            f'image buffer of {data.size} bytes does not match '
-            f'{msg.width}x{msg.height} step {msg.step}'
-        )
-    rows = data[:expected].reshape(msg.height, msg.step)[:, : msg.width * channels]
-    if channels == 1:
-        return np.ascontiguousarray(rows)
-    rgb = rows.reshape(msg.height, msg.width, 3).astype(np.float32)
-    w = (0.299, 0.587, 0.114) if msg.encoding == 'rgb8' else (0.114, 0.587, 0.299)
-    return np.clip(np.rint(rgb @ np.array(w, dtype=np.float32)), 0, 255).astype(np.uint8)
+    return to_gray(
+        bytes(msg.data),
+        int(msg.width),
+        int(msg.height),
+        int(msg.step),
+        str(msg.encoding),
+        bool(msg.is_bigendian),
+    )
 
 
 def gray_to_image(gray: np.ndarray, frame_id: str, stamp: Time) -> Image:

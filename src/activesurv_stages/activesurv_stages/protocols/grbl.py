@@ -133,3 +133,18 @@ def format_jog(axis: str, position: float, feed_per_min: float) -> bytes:
     if not feed_per_min > 0:
         raise ProtocolError(f'feed rate must be > 0, got {feed_per_min}')
     return f'$J=G90 {axis}{position:.4f} F{feed_per_min:.3f}\n'.encode('ascii')
+
+
+def format_jog_together(targets: dict[str, float], feed_per_min: float) -> bytes:
+    """One absolute jog of several axes along a straight line (GRBL coordinates them; the
+    feed is the speed along the line): ``$J=G90 X10.0000 Y5.0000 F600.000``.
+
+    Raises:
+        ProtocolError: for an unknown axis letter, no axis, or a non-positive feed.
+    """
+    if not targets or any(a not in 'XYZABC' or len(a) != 1 for a in targets):
+        raise ProtocolError(f'unknown or no GRBL axes {sorted(targets)}')
+    if not feed_per_min > 0:
+        raise ProtocolError(f'feed rate must be > 0, got {feed_per_min}')
+    words = ' '.join(f'{a}{v:.4f}' for a, v in targets.items())
+    return f'$J=G90 {words} F{feed_per_min:.3f}\n'.encode('ascii')

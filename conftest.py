@@ -98,3 +98,21 @@ def spin_until(rclpy_context: Any) -> Callable[..., bool]:
             executor.shutdown()
 
     return _spin
+
+
+@pytest.fixture(scope='session')
+def wait_for_file() -> Callable[..., bool]:
+    """Wait until a process (``activesurv lab``) has written a file; False if it died first."""
+    import subprocess
+    import time
+
+    def wait(path: Path, proc: subprocess.Popen[str], timeout: float = 60.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while not path.exists():
+            if proc.poll() is not None or time.monotonic() > deadline:
+                return False
+            time.sleep(0.2)
+        time.sleep(2.0)  # the lab reports ready once its camera drivers are up
+        return True
+
+    return wait

@@ -28,6 +28,7 @@ NODES: dict[str, tuple[str, str]] = {
     'dispatcher': ('activesurv_dispatch', 'dispatcher_node'),
     'fusion': ('activesurv_fusion', 'fusion_node'),
     'sim_camera': ('activesurv_sim', 'sim_camera_node'),
+    'lab_camera': ('activesurv_sim', 'lab_camera_node'),
     'sim_stage': ('activesurv_sim', 'sim_stage_node'),
     'xy_table': ('activesurv_sim', 'xy_table_node'),
     'stage_bridge': ('activesurv_stages', 'stage_bridge_node'),
@@ -36,6 +37,7 @@ NODES: dict[str, tuple[str, str]] = {
     'frames': ('activesurv_liveview', 'frames_node'),
     'live_view': ('activesurv_liveview', 'live_view_node'),
     'table_runner': ('activesurv_hardware', 'table_runner_node'),
+    'camera': ('activesurv_hardware', 'camera_node'),
 }
 
 

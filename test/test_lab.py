@@ -1,6 +1,7 @@
-"""``activesurv commission --live`` against an emulated lab (``activesurv lab``): stage_bridge
-nodes driving emulated Zaber and GRBL controllers over pseudo-terminals, simulated cameras of a
-perturbed rig. The commissioner knows only the topics, as with real hardware."""
+"""``activesurv commission --live --hardware`` against an emulated lab (``activesurv lab``): the
+lab's hardware file names emulated Zaber and GRBL controllers on pseudo-terminals and
+free-running camera drivers of a perturbed rig; commissioning starts the stage bridges from the
+file and knows only the topics, as with real hardware."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import json
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +21,9 @@ from activesurv_sim.rig import load_rig, perturb_rig, save_rig
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
 
-def test_live_commissioning_through_serial_controllers(tmp_path: Path) -> None:
+def test_live_commissioning_through_serial_controllers(
+    tmp_path: Path, wait_for_file: Callable[..., bool]
+) -> None:
     rig_file, cal = tmp_path / 'rig.yaml', tmp_path / 'cal'
     save_rig(perturb_rig(nominal(), 12), rig_file)
     lab = subprocess.Popen(
@@ -27,9 +31,11 @@ def test_live_commissioning_through_serial_controllers(tmp_path: Path) -> None:
          '--cameras', 'cam1'],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
+    hw = tmp_path / 'lab' / 'hardware.yaml'
     try:
+        assert wait_for_file(hw, lab), 'the lab wrote no hardware file'
         r = subprocess.run(
-            [ACTIVESURV, 'commission', '--live', '--out', str(cal), '--cameras', 'cam1'],
+            [ACTIVESURV, 'commission', '--live', '--hardware', str(hw), '--out', str(cal)],
             capture_output=True, text=True, timeout=900,
         )  # fmt: skip
     finally:
@@ -39,7 +45,7 @@ def test_live_commissioning_through_serial_controllers(tmp_path: Path) -> None:
     assert lab.returncode == 0, out[-1000:] + err[-2000:]
     assert 'lab up' in out
     assert 'lab stopped' in out
-    logs = tmp_path / 'lab' / 'logs'
+    logs = cal / 'work' / 'logs'  # commissioning started the bridges from the hardware file
     assert 'zaber controller on' in (logs / 'cam1_bridge.log').read_text()
     assert 'grbl controller on' in (logs / 'xy_table_bridge.log').read_text()
     doc = json.loads((cal / 'commission.json').read_text())

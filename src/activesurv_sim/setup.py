@@ -26,6 +26,7 @@ setup(
     entry_points={
         'console_scripts': [
             'sim_camera = activesurv_sim.sim_camera_node:main',
+            'lab_camera = activesurv_sim.lab_camera_node:main',
             'sim_stage = activesurv_sim.sim_stage_node:main',
             'xy_table = activesurv_sim.xy_table_node:main',
         ],

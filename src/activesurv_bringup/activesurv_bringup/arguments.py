@@ -21,6 +21,8 @@ from activesurv_bringup.files import dds_profile_path
 from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
 from activesurv_common.calibration import load_calibration
 from activesurv_common.errors import CalibrationError
+from activesurv_hardware.errors import HardwareFileError
+from activesurv_hardware.hardware_file import load_hardware
 from activesurv_sim.rig import RigError, load_rig
 from activesurv_sim.xytable import from_csv
 from activesurv_stages.errors import ConfigError as StageConfigError
@@ -115,6 +117,52 @@ def session(args: argparse.Namespace) -> None:
     )
 
 
+def controllers(texts: list[str]) -> dict[str, str]:
+    """``--controller NAME=PORT`` (repeatable) as {NAME: PORT}.
+
+    Raises:
+        ConfigError: for a malformed or repeated entry.
+    """
+    out: dict[str, str] = {}
+    for text in texts:
+        name, _, port = text.partition('=')
+        name, port = name.strip(), port.strip()
+        if not name or not port:
+            raise ConfigError(f'--controller {text!r}: expected NAME=PORT (NAME: table or camN)')
+        if name in out:
+            raise ConfigError(f'--controller {name} given twice')
+        out[name] = port
+    return out
+
+
+def hardware(args: argparse.Namespace) -> None:
+    """``--hardware``: a readable hardware file, and nothing that only a simulation has."""
+    path = _get(args, 'hardware')
+    if path is None:
+        if _get(args, 'home'):
+            raise ConfigError('--home needs --hardware (a simulated stage is always referenced)')
+        return
+    try:
+        load_hardware(path)
+    except HardwareFileError as exc:
+        raise ConfigError(f'--hardware {path}: {exc}') from exc
+    if args.command == 'commission' and not args.live:
+        raise ConfigError('--hardware commissions the real rig: add --live')
+    clash = [
+        flag
+        for flag, bad in (
+            ('--rig', _get(args, 'rig') is not None),
+            ('--mode lockstep', _get(args, 'mode') == 'lockstep'),
+            ('--compose', bool(_get(args, 'compose'))),
+            ('--hosts netns', _get(args, 'hosts') == 'netns'),
+            ('--kill', bool(_get(args, 'kill'))),
+        )
+        if bad
+    ]
+    if clash:
+        raise ConfigError(f'--hardware runs on the real rig: {", ".join(clash)} cannot apply')
+
+
 def _get(args: argparse.Namespace, name: str) -> Any:
     return getattr(args, name, None)
 
@@ -139,6 +187,10 @@ def check(args: argparse.Namespace) -> None:
     rig_seed = _get(args, 'rig_seed')
     if isinstance(rig_seed, int) and rig_seed < 0:
         raise ConfigError(f'--rig-seed must be >= 0, got {rig_seed}')
+    hardware(args)
+    if cmd == 'lab':
+        controllers(_get(args, 'controller') or [])
+        positive('--frame-rate', _get(args, 'frame_rate'))
     if cmd in ('experiment', 'surveil', 'demo', 'lab', 'commission'):
         rig_file(_get(args, 'rig'))
     if cmd in ('experiment', 'surveil', 'demo'):

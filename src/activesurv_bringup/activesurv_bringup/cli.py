@@ -43,6 +43,9 @@ from activesurv_bringup import __version__, arguments
 from activesurv_bringup.errors import USER_ERRORS, ConfigError
 from activesurv_bringup.experiments.options import PROCESSES, RunOptions
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
+from activesurv_bringup.rig.hardware import add_arguments as add_hardware_arguments
+from activesurv_bringup.rig.hardware import run as run_hardware_command
+from activesurv_bringup.rig.rigs import add_arguments as add_rig_arguments
 from activesurv_launch.domains import isolate
 
 SYSTEMS = ('static', 'medium', 'fast')
@@ -124,6 +127,13 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     _add_foxglove(exp)
     _add_rig(exp)
+    _add_hardware(exp)
+    exp.add_argument(
+        '--no-motion-correction',
+        action='store_true',
+        help='free-running cameras: take the nearest frame as it is (to measure what the '
+        'correction gains)',
+    )
     exp.add_argument(
         '--compose',
         action='store_true',
@@ -164,6 +174,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sv.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     _add_foxglove(sv)
     _add_rig(sv)
+    _add_hardware(sv)
 
     rpl = _sub(sub, 'replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
@@ -214,6 +225,13 @@ def _build_parser() -> argparse.ArgumentParser:
     com.add_argument(
         '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
     )
+    com.add_argument(
+        '--hardware',
+        type=Path,
+        default=None,
+        help="with --live: the rig's hardware file; its stage bridges (homing) and camera "
+        'drivers are started, its camera topics listened to',
+    )
 
     lab = _sub(
         sub,
@@ -225,9 +243,22 @@ def _build_parser() -> argparse.ArgumentParser:
     lab.add_argument(
         '--cameras', default=None, help='comma-separated dynamic cameras (default: all)'
     )
+    lab.add_argument(
+        '--controller',
+        action='append',
+        default=[],
+        metavar='NAME=PORT',
+        help='an external controller in place of an emulated one (NAME: table or a camera id)',
+    )
+    lab.add_argument(
+        '--frame-rate', type=float, default=30.0, help="Hz the lab's cameras free-run at"
+    )
+    lab.add_argument('--namespace', default='', help="ROS namespace of the lab's rig")
+
+    hw = _sub(sub, 'hardware', help='hardware files: a real rig (template, check)')
+    add_hardware_arguments(hw.add_subparsers(dest='hardware_command', required=True))
 
     rig = _sub(sub, 'rig', help='rig files: the simulated hardware (nominal, perturb)')
-    from activesurv_bringup.rig.rigs import add_arguments as add_rig_arguments
 
     add_rig_arguments(rig.add_subparsers(dest='rig_command', required=True))
 
@@ -271,6 +302,21 @@ def _add_seed(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=DEFAULT_SEED,
         help="seeds the run (paths, image noise); the rig is --rig-seed's",
+    )
+
+
+def _add_hardware(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        '--hardware',
+        type=Path,
+        default=None,
+        help='run on the real rig this hardware file describes (wall clock; see '
+        'activesurv hardware template) instead of the simulator',
+    )
+    parser.add_argument(
+        '--home',
+        action='store_true',
+        help='with --hardware: home unreferenced axes when the bridges connect',
     )
 
 
@@ -337,8 +383,14 @@ def experiment(
     rig: Path | None = None,
     calibration: str | None = None,
     rig_seed: int = DEFAULT_RIG_SEED,
+    hardware: Path | None = None,
+    home: bool = False,
+    motion_correction: bool = True,
 ) -> dict[str, Any]:
     """Run one experiment into ``out`` (new or empty); returns its results document.
+
+    With ``hardware`` it runs on that rig (its calibration: ``calibration``, else the hardware
+    file's), on the wall clock.
 
     Raises:
         ConfigError: for a bad configuration; NodeDiedError if a node of the graph dies.
@@ -355,6 +407,20 @@ def experiment(
         print(f'  Set {set_name} {system}: {text}', flush=True)
 
     new_output_dir(out)  # refused before anything is commissioned or run
+    if hardware is not None:
+        from activesurv_bringup.experiments.hardware_graph import run_hardware
+        from activesurv_bringup.experiments.report import load_run
+        from activesurv_bringup.rig.hardware import hardware_choice, read
+
+        hw = read(hardware)
+        choice = hardware_choice(hw, calibration)
+        exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
+        exp.config['predictor']['model'] = predictor
+        started = time.monotonic()
+        run_hardware(exp, hw, out, opts, say, home, motion_correction)
+        result = load_run(out)
+        say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
+        return result
     choice = choose(rig, calibration, rig_seed, cache_dir(), say)
     exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
     exp.config['predictor']['model'] = predictor
@@ -469,21 +535,28 @@ def _camera_list(cameras: str | None) -> list[str] | None:
 
 
 def commission(
-    out: Path, rig: Path | None, live: bool = False, cameras: str | None = None
+    out: Path,
+    rig: Path | None,
+    live: bool = False,
+    cameras: str | None = None,
+    hardware: Path | None = None,
 ) -> dict[str, Any]:
-    """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one."""
+    """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one (with
+    ``hardware``, the rig that hardware file describes)."""
     from activesurv_bringup.rig.commission import run_commission
+    from activesurv_bringup.rig.hardware import read
     from activesurv_bringup.rig.rigs import resolve_rig
 
     if (rig is None) == (not live):
         raise ConfigError('give --rig RIG.yaml (simulation) or --live (the running hardware)')
     the_rig = resolve_rig(rig, 0)[0] if rig is not None else None
-    chosen = _camera_list(cameras)
+    hw = read(hardware) if hardware is not None else None
+    chosen = _camera_list(cameras) or (list(hw.cameras) if hw is not None else None)
 
     def say(text: str) -> None:
         print(f'  commission: {text}', flush=True)
 
-    doc = run_commission(out, the_rig, chosen, say)
+    doc = run_commission(out, the_rig, chosen, say, hardware=hw)
     say(f'done in {doc["seconds"]:.0f} s -> {out}')
     return doc
 
@@ -581,6 +654,8 @@ def simulated(args: argparse.Namespace) -> bool:
     """Whether the command runs the simulator (and so must not share a real rig's domain)."""
     if args.command == 'commission':
         return not args.live
+    if getattr(args, 'hardware', None) is not None:
+        return False  # the rig's own domain, as its drivers use
     return args.command in ('experiment', 'surveil', 'demo', 'replay')
 
 
@@ -608,6 +683,9 @@ def _dispatch(args: argparse.Namespace) -> None:
             args.rig,
             args.calibration,
             args.rig_seed,
+            args.hardware,
+            args.home,
+            not args.no_motion_correction,
         )
     elif args.command == 'surveil':
         from activesurv_bringup.experiments.surveil import SurveilOptions, parse_demand_at
@@ -648,11 +726,20 @@ def _dispatch(args: argparse.Namespace) -> None:
             args.rig_seed,
         )
     elif args.command == 'commission':
-        commission(args.out, args.rig, args.live, args.cameras)
+        commission(args.out, args.rig, args.live, args.cameras, args.hardware)
     elif args.command == 'lab':
         from activesurv_bringup.rig.lab import run_lab
 
-        run_lab(args.rig, args.out, _camera_list(args.cameras))
+        run_lab(
+            args.rig,
+            args.out,
+            _camera_list(args.cameras),
+            controllers=arguments.controllers(args.controller),
+            frame_rate=args.frame_rate,
+            namespace=args.namespace,
+        )
+    elif args.command == 'hardware':
+        print('\n'.join(run_hardware_command(args)))
     elif args.command == 'rig':
         from activesurv_bringup.rig.rigs import run as write_rig
 

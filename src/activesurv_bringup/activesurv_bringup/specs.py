@@ -1,11 +1,13 @@
 """Node specs shared by every kind of run: a camera's mount parameters, a simulated stage, the
-live view. Graph runs, commissioning, replay and the lab all start these nodes."""
+live view, a real stage's bridge and a real camera's driver. Graph runs, hardware runs,
+commissioning, replay and the lab all start these nodes."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from activesurv_dispatch.sensors import Sensor
+from activesurv_hardware.hardware_file import CameraEntry
 from activesurv_launch.launcher import NodeSpec
 
 
@@ -49,3 +51,42 @@ def live_view_spec(port: int, sim_time: bool = True) -> NodeSpec:
         'activesurv_liveview.live_view_node',
         parameters={'port': int(port), 'use_sim_time': sim_time},
     )
+
+
+def bridge_spec(stage: str, config_file: str, home: bool) -> NodeSpec:
+    return NodeSpec(
+        f'{stage}_bridge',
+        'activesurv_stages.stage_bridge_node',
+        parameters={
+            'config_file': config_file,
+            'camera_id': stage,
+            'home_on_connect': bool(home),
+            'reconnect_period': 0.5,
+        },
+    )
+
+
+def source_specs(cam: CameraEntry, calibration: str) -> tuple[list[NodeSpec], dict[str, str]]:
+    """A camera's driver node (``device:``) or, for a driver's topic, the imager's remappings."""
+    cid = cam.camera_id
+    if cam.source.kind == 'topic':
+        remap = {f'{cid}/image_raw': cam.source.value}
+        return [], {**remap, f'{cid}/camera_info': cam.source.camera_info}
+    options = dict(cam.source.options)
+    return [
+        NodeSpec(
+            f'{cid}_camera',
+            'activesurv_hardware.camera_node',
+            parameters={
+                'camera_id': cid,
+                'device': cam.source.value,
+                'width': int(options.get('width', 0)),
+                'height': int(options.get('height', 0)),
+                'fps': float(options.get('fps', cam.frame_rate)),
+                'fourcc': str(options.get('fourcc', '')),
+                'frame_rate': cam.frame_rate,
+                'loop': bool(options.get('loop', False)),
+                'camera_info_file': f'{calibration}/{cid}.yaml',
+            },
+        )
+    ], {}

@@ -30,9 +30,16 @@ def horizon_to_demands(msg: DemandHorizon) -> list[Demand]:
         norm = float(np.linalg.norm(n))
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(cov)) and norm > 1e-9):
             continue
+        vel = np.array([d.velocity.x, d.velocity.y, d.velocity.z], dtype=np.float64)
         out.append(
             Demand(
-                int(d.index), time_to_sec(d.demand_instant), pos, n / norm, cov, int(d.object_id)
+                int(d.index),
+                time_to_sec(d.demand_instant),
+                pos,
+                n / norm,
+                cov,
+                int(d.object_id),
+                vel if np.all(np.isfinite(vel)) else None,
             )
         )
     return out
@@ -84,6 +91,10 @@ def capture_to_request(capture: Capture, stamp: float, frame_id: str) -> Capture
         float(v) for v in p
     )
     msg.predicted_normal.x, msg.predicted_normal.y, msg.predicted_normal.z = (float(v) for v in n)
+    v = capture.demand.velocity
+    if v is not None:
+        vel = msg.predicted_velocity
+        vel.x, vel.y, vel.z = (float(x) for x in v)
     return msg
 
 

@@ -86,6 +86,7 @@ class Demand:
     normal: Array
     covariance: Array  # 6x6 over (x, y, z, rot_x, rot_y, rot_z)
     object_id: int = 0  # continuous surveillance: the object it surveys (0: an experiment)
+    velocity: Array | None = None  # predicted marker velocity at the instant (m/s)
 
     @property
     def target(self) -> Target:

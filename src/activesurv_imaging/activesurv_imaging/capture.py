@@ -6,11 +6,12 @@ states interpolated there.
 
 Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j``
 itself. A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame
-nearest ``t_j`` is taken (within half a frame period, once a frame after ``t_j`` has come, so
-that the nearest is known), its offset ``frame stamp - t_j`` is reported, and the marker
-position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``).
-A frame's stamp minus ``exposure_delay`` is its exposure instant (a driver that stamps frames on
-arrival stamps them after exposure and read-out).
+nearest ``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It
+is within half a frame period unless that frame was dropped; then its neighbour a period away
+is taken (up to 1.25 periods, for the stamps' jitter). Its offset ``frame stamp - t_j`` is
+reported, and the marker position is moved to ``t_j`` along the object's predicted velocity
+(``v (t_j - t_frame)``). A frame's stamp minus ``exposure_delay`` is its exposure instant (a
+driver that stamps frames on arrival stamps them after exposure and read-out).
 
 It waits (returns nothing yet) while the frame, the camera_info or a stage state at or after
 the frame's stamp is still to come, and gives up with an explicit failure ``frame_timeout``
@@ -94,7 +95,9 @@ class ImagerConfig:
     def tolerance(self) -> float:
         """Largest |exposure - demand instant| accepted: half a period when free-running."""
         if self.trigger == 'free':
-            return 0.5 / self.frame_rate
+            # The nearest frame is within half a period (plus the stamps' jitter); when it was
+            # dropped, its neighbour a period away is still taken (and moved to the instant).
+            return 1.25 / self.frame_rate
         return self.frame_tolerance
 
 

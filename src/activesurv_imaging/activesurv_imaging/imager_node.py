@@ -41,7 +41,7 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
 from activesurv_imaging.annotations import annotation_shapes
-from activesurv_imaging.capture import CaptureCore, ImagerConfig
+from activesurv_imaging.capture import TRIGGERS, CaptureCore, ImagerConfig
 from activesurv_imaging.conversions import annotation_markers, observation_to_msg
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.observation import ObservationStatus
@@ -56,6 +56,10 @@ PARAMS = (
     Param('joint_hold', 0.2, 's a stage state may be held beyond its stamp', above=0.0),
     Param('reliable_images', False, 'images and stage states reliably (publishers must be)'),
     Param('exact_states', False, 'wait for a stage state stamped at the frame (trigger latch)'),
+    Param('trigger', 'hardware', 'how the camera exposes', choices=TRIGGERS),
+    Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
+    Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
+    Param('motion_correction', True, "move a free-running frame's marker to the instant"),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
     Param('inject_flip', False, 'fault: take the wrong circle pose'),
@@ -72,16 +76,10 @@ class ImagerNode(Node):
         mount = mount_from_parameters(
             self.camera_id, {n: self.get_parameter(n).value for n in MOUNT_PARAMETERS}
         )
+        # The parameters are named as ImagerConfig's fields (exact_states: exact_state).
+        fields = ImagerConfig.__dataclass_fields__
         config = ImagerConfig(
-            self.camera_id,
-            float(v['marker_radius']),
-            float(v['frame_tolerance']),
-            float(v['frame_timeout']),
-            float(v['joint_hold']),
-            float(v['inject_bias_x']),
-            float(v['inject_noise']),
-            bool(v['inject_flip']),
-            bool(v['exact_states']),
+            **{k: x for k, x in v.items() if k in fields}, exact_state=bool(v['exact_states'])
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)
@@ -126,8 +124,8 @@ class ImagerNode(Node):
 
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:
-            n = vector3(msg.predicted_normal)
-            self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n)
+            n, v = vector3(msg.predicted_normal), vector3(msg.predicted_velocity)
+            self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n, v)
             self._on_tick()
 
     def _on_image(self, msg: Image) -> None:

@@ -37,5 +37,6 @@ def horizon_to_msg(
         )
         d.pose.covariance = [float(v) for v in p.covariance.reshape(-1)]
         d.normal.x, d.normal.y, d.normal.z = (float(v) for v in p.normal)
+        d.velocity.x, d.velocity.y, d.velocity.z = (float(v) for v in p.velocity)
         msg.demands.append(d)
     return msg

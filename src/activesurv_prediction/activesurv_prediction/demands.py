@@ -15,7 +15,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
 
 import numpy as np
@@ -26,6 +26,9 @@ from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.tracker import Tracker, TrackState
 
 Array = NDArray[np.float64]
+
+
+VELOCITY_STEP = 0.05  # s: half the span of the central difference for a demand's velocity
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,7 @@ class DemandPrediction:
         position: (3,) predicted marker centre (world).
         normal: (3,) marker normal.
         covariance: 6x6 over (x, y, z, rot_x, rot_y, rot_z).
+        velocity: (3,) predicted marker velocity at the instant (m/s).
     """
 
     index: int
@@ -108,6 +112,7 @@ class DemandPrediction:
     normal: Array
     covariance: Array
     object_id: int = 0
+    velocity: Array = field(default_factory=lambda: np.zeros(3))
 
 
 def predict_demands(
@@ -257,7 +262,13 @@ def predict_points(
         pos = np.array([mean[0], mean[1], top_height]) + geometry.offset
         C = template.copy()
         C[:2, :2] = cov
-        out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C, object_id))
+        # The planar velocity by a difference of the predicted mean around t (never before the
+        # filter's last update: it predicts forward only).
+        t0 = max(t - VELOCITY_STEP, predictor.last_time or t)
+        t1 = t0 + 2 * VELOCITY_STEP
+        v = (predictor.predict_mean(t1)[:2] - predictor.predict_mean(t0)[:2]) / (t1 - t0)
+        vel = np.array([v[0], v[1], 0.0])
+        out.append(DemandPrediction(j, t, pos, geometry.normal.copy(), C, object_id, vel))
     return out
 
 

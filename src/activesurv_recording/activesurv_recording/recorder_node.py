@@ -1,18 +1,19 @@
 """The ``recorder`` node: records every topic of the graph to an MCAP rosbag2 bag.
 
 Like ``ros2 bag record -a`` (not on PyPI): a topic is recorded once a publisher of it appears,
-subscribed to match its publishers (reliable / transient local only if they all are) and noted
-in ``metadata.yaml`` with the QoS profiles they offer (what ``replay`` and ``ros2 bag play``
-offer again); its own status topic never. Messages are written as received (serialized bytes),
-stamped on simulated time with the last /clock tick extrapolated at the ticks' rate
-(:class:`~activesurv_common.timeseries.ClockEstimate`: latencies are read off these times).
-Streams in ``thin_topics`` (the overhead camera) are thinned to ``image_rate`` Hz; every other
-message is kept. Message definitions go into the bag; ``run_info`` (JSON) is stored on
+subscribed to match its publishers (reliable / transient local only if they all are) and noted in
+``metadata.yaml`` with the QoS profiles they offer (what ``replay`` and ``ros2 bag play`` offer
+again); its own status topic never. Messages are written as received (serialized bytes), stamped on
+simulated time with the last /clock tick extrapolated at the ticks' rate
+(:class:`~activesurv_common.timeseries.ClockEstimate`: latencies are read off these times). Streams
+in ``thin_topics`` (the overhead camera) are thinned to ``image_rate`` Hz; every other message is
+kept. Message definitions go into the bag; ``run_info`` (JSON) is stored on
 ``/activesurv/run_info``. On SIGINT/SIGTERM the bag is closed cleanly. Parameters: see
-``config/recorder.yaml`` (``max_bag_duration`` splits the bag into bag_0.mcap, bag_1.mcap, ...
-of one metadata.yaml; ``strip_namespace`` records a rig's /NS/x as /x). A SIGKILL loses at most the messages of the last ``flush_period`` (default 0.5 s wall time):
-every flush writes a complete MCAP chunk and fsyncs it; ``activesurv bag reindex BAG``
-rebuilds the index and ``metadata.yaml`` from what is on disk."""
+``config/recorder.yaml`` (``max_bag_duration`` splits the bag into bag_0.mcap, bag_1.mcap, ... of
+one metadata.yaml; ``strip_namespace`` records a rig's /NS/x as /x). A SIGKILL loses at most the
+messages of the last ``flush_period`` (default 0.5 s wall time): every flush writes a complete MCAP
+chunk and fsyncs it; ``activesurv bag reindex BAG`` rebuilds the index and ``metadata.yaml`` from
+what is on disk."""
 
 from __future__ import annotations
 

@@ -99,6 +99,7 @@ class DemandRecord:
     reason: str = ''
     latency: float | None = None
     predictions: list[dict[str, Any]] = field(default_factory=list)
+    frame_offsets: dict[str, float] = field(default_factory=dict)  # camera: stamp - instant
 
     @property
     def position_error(self) -> float | None:
@@ -134,6 +135,7 @@ class DemandRecord:
             'reason': self.reason,
             'latency': self.latency,
             'predictions': self.predictions,
+            'frame_offsets': {c: float(v) for c, v in self.frame_offsets.items()},
         }
 
 
@@ -203,13 +205,14 @@ def write_results(path: Path, doc: dict[str, Any]) -> None:
 def summary(doc: dict[str, Any]) -> dict[str, float]:
     """Mean visibility, median errors, and how many demands got an estimate."""
     rows = doc['demands']
-    pos = [r['position_error'] for r in rows if r['position_error'] is not None]
-    ori = [r['orientation_error'] for r in rows if r['orientation_error'] is not None]
+    # A hardware run without a table controller has no truth: no errors.
+    pos = [r['position_error'] for r in rows if r.get('position_error') is not None]
+    ori = [r['orientation_error'] for r in rows if r.get('orientation_error') is not None]
     return {
         'mean_visibility': float(np.mean([r['visibility'] for r in rows])) if rows else 0.0,
         'median_position_error': float(np.median(pos)) if pos else math.nan,
         'median_orientation_error': float(np.median(ori)) if ori else math.nan,
-        'estimates': float(len(pos)),
+        'estimates': float(sum(r.get('estimated_position') is not None for r in rows)),
         'demands': float(len(rows)),
     }
 

@@ -306,7 +306,9 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
 class _Monitor:
     """Watches /clock and the estimates from inside the orchestrator."""
 
-    def __init__(self, expected_nodes: Sequence[str]) -> None:
+    def __init__(
+        self, expected_nodes: Sequence[str], time_origin: float | None = None, namespace: str = ''
+    ) -> None:
         import rclpy
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
@@ -315,8 +317,9 @@ class _Monitor:
         from activesurv_interfaces.msg import TargetEstimate
 
         self.rclpy = rclpy
-        self.node = rclpy.create_node('activesurv_monitor')
+        self.node = rclpy.create_node('activesurv_monitor', namespace=namespace or None)
         self.sim_time = 0.0
+        self.time_origin = time_origin  # a hardware run: run time is wall time since it
         self.estimates: dict[int, Any] = {}
         self.expected_nodes = set(expected_nodes)
         self.node.create_subscription(
@@ -354,6 +357,8 @@ class _Monitor:
             self.rclpy.spin_once(
                 self.node, timeout_sec=min(0.05, max(end - time.monotonic(), 0.0))
             )
+            if self.time_origin is not None:
+                self.sim_time = time.time() - self.time_origin
 
     def missing_nodes(self) -> set[str]:
         present = {n for n, _ in self.node.get_node_names_and_namespaces()}
@@ -431,6 +436,7 @@ def run_graph(
     hosts: NetnsHosts | None = None,
     until: Until | None = None,
     specs: list[NodeSpec] | None = None,
+    before_start: Callable[[Any, Progress], None] | None = None,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
@@ -442,7 +448,9 @@ def run_graph(
     own host.
 
     ``until`` replaces the experiment's end (every demand answered); ``specs`` replaces the
-    experiment's nodes (as :func:`graph_specs` would list them, xy table last).
+    experiment's nodes (as :func:`graph_specs` would list them, xy table last);
+    ``before_start(monitor, progress)`` runs when every node is up, before the last one starts
+    (a hardware run places its cameras there).
 
     Raises:
         ConfigError: for options that do not fit this run (a node to kill that is not in it).
@@ -477,7 +485,7 @@ def run_graph(
         specs = group_processes(specs[:-1], alone) + specs[-1:]
     rule = until or experiment_until(exp, opts.rtf)
     with scoped_environ(opts.environment()):
-        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rclpy, rule)
+        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rclpy, rule, before_start)
 
 
 def _run(
@@ -490,6 +498,7 @@ def _run(
     hosts: NetnsHosts | None,
     rclpy: Any,
     until: Until,
+    before_start: Callable[[Any, Progress], None] | None = None,
 ) -> Path:
     killed: set[Kill] = set()
     restarted: set[Kill] = set()
@@ -504,7 +513,11 @@ def _run(
         # SIGINT stays Python's (KeyboardInterrupt, or a session's own handler): the nodes are
         # stopped in order in ``finally``, rather than the monitor's context shut under it.
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    monitor = _Monitor([m.name for s in specs[:-1] for m in (s.members or (s,))])
+    monitor = _Monitor(
+        [m.name for s in specs[:-1] for m in (s.members or (s,))],
+        opts.time_origin,
+        opts.namespace,
+    )
     launcher: Launcher | Composition
     if opts.compose:
         from activesurv_launch.compose import Composition
@@ -532,6 +545,8 @@ def _run(
                 )
             monitor.spin(0.2)
         monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
+        if before_start is not None:
+            before_start(monitor, progress)
         n_nodes = sum(len(s.members) or 1 for s in specs)
         progress(
             f'{n_nodes} nodes up in {len(specs) - 1} processes; starting the xy table and '

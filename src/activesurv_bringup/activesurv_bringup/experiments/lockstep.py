@@ -223,6 +223,7 @@ def _capture(
     scene = object_scene(np.concatenate([truth.top, truth.side, truth.side_normal]), geometry)
     answers: dict[str, Answer] = {}
     poses: dict[str, Array] = {}
+    offsets: dict[str, float] = {}
     for cid in capture.cameras:
         if cid not in cameras:
             continue  # a dead camera: no answer
@@ -240,6 +241,7 @@ def _capture(
         cam.imager.add_frame(tj, img)
         cam.imager.add_joints(tj, q)
         obs = cam.imager.poll(tj)[0]
+        offsets[cid] = obs.frame_offset
         if (
             obs.status is not ObservationStatus.OK
             or obs.position is None
@@ -269,5 +271,6 @@ def _capture(
         rec.estimated_normal = result.fused.normal.copy()
         rec.cameras = list(result.fused.cameras_used)
         rec.faulty = list(result.fused.cameras_faulty)
+    rec.frame_offsets = offsets
     rec.latency = time.perf_counter() - started
     return rec

@@ -50,6 +50,9 @@ class RunOptions:
         extra: further nodes started with the graph (load generators).
         thin: further topics the recorder thins to ``image_rate``.
         preview_rate: Hz of the dynamic cameras' preview streams for viewers (0: none).
+        time_origin: a hardware run: wall clock (s since the epoch) of run time 0; None: the
+            simulator's /clock.
+        namespace: a hardware run: the rig's ROS namespace.
     """
 
     rtf: float = 1.0
@@ -64,6 +67,8 @@ class RunOptions:
     extra: tuple[NodeSpec, ...] = ()
     thin: tuple[str, ...] = ()
     preview_rate: float = 0.0
+    time_origin: float | None = None
+    namespace: str = ''
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rtf) and self.rtf > 0.0):

@@ -47,6 +47,9 @@ def demand_record(
         rec.assigned = [str(c) for c in req.camera_ids]
     seen = []
     for o in observations:
+        # Frame stamp minus demand instant (free-running cameras; 0 for triggered ones).
+        if o.status != 3:  # NO_IMAGE: no frame, no offset
+            rec.frame_offsets[str(o.camera_id)] = float(getattr(o, 'frame_offset', 0.0))
         if o.status == 0:
             p, q = o.camera_pose.position, o.camera_pose.orientation
             seen.append(

@@ -56,6 +56,9 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
     """
     info = run_info(bag)
     times = [float(t) for t in info['demand_times']]
+    # A hardware run: its demand instants are wall clock, run time 0 at ``time_origin``.
+    origin = float(info.get('time_origin') or 0.0)
+    truthless = info.get('mode') == 'hardware' and not info.get('truth')
     truth = TimeSeries(6, capacity=10**7)
     requests: dict[int, Any] = {}
     observations: dict[int, list[Any]] = {}
@@ -78,20 +81,22 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
         elif m.topic == '/target_estimate':
             estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
-    if len(truth) == 0:
+    if len(truth) == 0 and not truthless:
         raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
     model = SensorModel.load()
     records = []
-    for j, tj in enumerate(times):
-        s = truth.at(tj, hold=0.5)
+    for j, t_run in enumerate(times):
+        tj = origin + t_run
+        s = truth.at(tj, hold=0.5) if not truthless else np.full(6, np.nan)
         if s is None:
-            raise BagError(f'no ground truth near demand {j} at {tj:.2f} s')
+            raise BagError(f'no ground truth near demand {j} at {t_run:.2f} s')
         rec = demand_record(
             j, tj, s, requests.get(j), observations.get(j, []), estimates.get(j), model
         )
+        rec.t = t_run
         rec.predictions = predicted.picks(j, tj)
         records.append(rec)
-    return results_document(
+    doc = results_document(
         str(info['set']),
         str(info['system']),
         records,
@@ -102,8 +107,16 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             'faults': info.get('faults', []),
             # The simulated hardware and what the system was told (None: round-1 runs).
             **{k: info.get(k) for k in ('rig', 'rig_source', 'rig_seed', 'calibration')},
+            # Where the truth comes from: the simulator, or a real table's controller.
+            'truth': info.get('truth') if info.get('mode') == 'hardware' else 'simulator',
+            **({'hardware': info['hardware']} if 'hardware' in info else {}),
         },
     )
+    if truthless:  # nothing measured the object: no truth columns at all
+        for row in doc['demands']:
+            for key in ('true_position', 'true_normal', 'position_error', 'orientation_error'):
+                row.pop(key, None)
+    return doc
 
 
 def find_runs(path: Path) -> list[Path]:

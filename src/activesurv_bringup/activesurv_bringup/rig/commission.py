@@ -22,10 +22,12 @@ import json
 import math
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
@@ -38,12 +40,13 @@ from activesurv_bringup.rig.board_views import (
     simulated_overhead_look,
 )
 from activesurv_bringup.rig.rigs import nominal
-from activesurv_bringup.specs import stage_spec
+from activesurv_bringup.specs import bridge_spec, source_specs, stage_spec
 from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_dispatch.sensors import Setup
+from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import (
     BoardSighting,
@@ -115,14 +118,22 @@ def camera_spec(cid: str, rig_file: Path, nominal_dir: Path, extra: dict[str, An
 class Commissioner:
     """Drives stages and table, triggers cameras and collects what they see (one rclpy node)."""
 
-    def __init__(self, setup: Setup, cameras: Sequence[str], settle_timeout: float = 20.0) -> None:
+    def __init__(
+        self,
+        setup: Setup,
+        cameras: Sequence[str],
+        settle_timeout: float = 20.0,
+        image_topics: dict[str, tuple[str, str]] | None = None,
+        namespace: str = '',
+    ) -> None:
         from rclpy.node import Node
         from sensor_msgs.msg import CameraInfo, Image, JointState
 
         from activesurv_common.ros import qos, topics
         from activesurv_interfaces.msg import CaptureRequest, StageGoal
 
-        self.node = Node('commissioner')
+        self.node = Node('commissioner', namespace=namespace or None)
+        topics_of = image_topics or {}
         self.setup = setup
         self.settle_timeout = settle_timeout
         self.states: dict[str, Any] = {}
@@ -143,11 +154,11 @@ class Commissioner:
             )
         for cid in ['overhead', *cameras]:
             self.images[cid] = []
+            image, info = topics_of.get(cid, (topics.image(cid), topics.camera_info(cid)))
+            # Best effort, as camera drivers publish (a reliable subscription would never match).
+            self.node.create_subscription(Image, image, self.images[cid].append, qos.SENSOR)
             self.node.create_subscription(
-                Image, topics.image(cid), self.images[cid].append, qos.STATE
-            )
-            self.node.create_subscription(
-                CameraInfo, topics.camera_info(cid), self._keep(self.infos, cid), qos.SENSOR
+                CameraInfo, info, self._keep(self.infos, cid), qos.SENSOR
             )
 
     @staticmethod
@@ -513,6 +524,7 @@ def run_commission(
     cameras: Sequence[str] | None = None,
     progress: Progress = print,
     startup_timeout: float = 60.0,
+    hardware: Hardware | None = None,
 ) -> dict[str, Any]:
     """Commission the rig into ``out`` (new or empty); returns ``commission.json``.
 
@@ -520,6 +532,9 @@ def run_commission(
         out: the calibration directory to write.
         rig: the rig to simulate, or None for ``--live`` (stages, table and cameras already
             running, on this ROS domain).
+        hardware: with ``--live``, the rig's hardware file: its stage bridges (homing every
+            axis: a calibration needs references) and camera drivers are started here, its
+            cameras' topics listened to.
         cameras: the dynamic cameras to commission (default: all); the others keep nominal
             values, marked so in ``commission.json``.
 
@@ -544,10 +559,15 @@ def run_commission(
         save_rig(rig, work / 'rig.yaml')
         specs = commission_specs(work / 'rig.yaml', setup, work / 'factory')
         launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
+    topics_of: dict[str, tuple[str, str]] = {}
+    if hardware is not None:
+        specs, topics_of = hardware_commission_specs(hardware, chosen, work)
+        launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
     owns = not rclpy.ok()
     if owns:
         rclpy.init()
-    com = Commissioner(setup, chosen)
+    ns = hardware.namespace if hardware is not None else ''
+    com = Commissioner(setup, chosen, image_topics=topics_of, namespace=ns)
     started = time.monotonic()
     try:
         if launcher is not None:
@@ -582,6 +602,37 @@ def run_commission(
             launcher.stop()
         if owns:
             rclpy.try_shutdown()
+
+
+def hardware_commission_specs(
+    hw: Hardware, cameras: Sequence[str], work: Path
+) -> tuple[list[NodeSpec], dict[str, tuple[str, str]]]:
+    """The bridges and camera drivers of a hardware file, for commissioning ``cameras``; and
+    each camera's image and camera_info topics (a driver's own, or our camera node's)."""
+    missing = [c for c in cameras if c not in hw.cameras]
+    if missing:
+        raise ConfigError(f'{hw.path} has no cameras {missing} (it has {list(hw.cameras)})')
+    if hw.table is None:
+        raise ConfigError(
+            f'{hw.path}: commissioning moves the boards on the xy table: it needs one'
+        )
+    ctl = work / 'controllers'
+    ctl.mkdir(parents=True, exist_ok=True)
+    specs: list[NodeSpec] = []
+    topics_of: dict[str, tuple[str, str]] = {}
+    stages = {TABLE_ID: hw.table_dict} | {c: hw.cameras[c].stages_dict for c in cameras}
+    for stage, doc in stages.items():
+        path = ctl / f'{stage}.yaml'
+        path.write_text(yaml.safe_dump(dict(doc or {}), sort_keys=False))
+        specs.append(bridge_spec(stage, str(path), home=True))
+    for cam in [hw.overhead, *(hw.cameras[c] for c in cameras)]:
+        nodes, _ = source_specs(cam, str(work / 'factory'))
+        specs += nodes
+        if cam.source.kind == 'topic':
+            topics_of[cam.camera_id] = (cam.source.value, cam.source.camera_info)
+    if hw.namespace:
+        specs = [replace(s, namespace=hw.namespace) for s in specs]
+    return specs, topics_of
 
 
 def _check(launcher: Launcher) -> bool:

@@ -1,19 +1,25 @@
-"""``activesurv lab``: an emulated lab, to try ``commission --live`` without hardware.
+"""``activesurv lab``: the whole rig emulated, for hardware mode without hardware.
 
-A lab that commissions its rig runs, on one ROS domain: a ``stage_bridge`` node per stage
-controller (the xy table on a GRBL controller, each dynamic camera's stages on a Zaber daisy
-chain), a camera driver per camera publishing ``<cam>/image_raw`` and ``camera_info`` when a
-``capture_request`` names it, and the checkerboards on the table's carriage. ``activesurv lab``
-runs exactly that, with the controllers emulated on pseudo-terminals
-(:mod:`activesurv_stages.emulators`, the same emulators the serial tests use) and the cameras
-simulated from a rig file (they render what the stage positions the bridges report show).
-``activesurv commission --live`` then talks to it as it would to the real rig: it knows only
-the topics.
+A hardware-in-the-loop lab: the xy table on an emulated GRBL controller and each dynamic
+camera's stages on an emulated Zaber daisy chain, all on pseudo-terminals under ``LAB/dev``
+(:mod:`activesurv_stages.emulators`, the same emulators the serial tests use); and a camera
+driver process per camera (``lab_camera``) that free-runs on the wall clock (30 Hz by default,
+the overhead camera 10 Hz), publishes best effort with an exposure and read-out delay, jitter
+and the occasional dropped frame, and renders the rig file's truth at the positions the
+controllers report. The table carries the commissioning boards, or the object while a run
+reports it. ``LAB/hardware.yaml`` describes the lab as a hardware file, written before the lab
+reports ready; everything else (stage bridges, the graph) is started by the commands that use
+the hardware, exactly as on a real rig::
 
-::
+    activesurv lab --rig RIG.yaml --out LAB                  # until Ctrl-C
+    activesurv commission --live --hardware LAB/hardware.yaml --out CAL
+    activesurv experiment --hardware LAB/hardware.yaml --calibration CAL --set A --system fast
+        --out RUN
 
-    activesurv lab --rig RIG.yaml --out LABDIR [--cameras cam1,cam3]   # until Ctrl-C
-    activesurv commission --live --out CALDIR --cameras cam1,cam3
+``--controller NAME=PORT`` (NAME ``table`` or a camera id) puts an external controller (a real
+one on the bench, or an emulator that is not ours) in place of an emulated one; a ``table`` is a
+GRBL controller with X and Y in mm (its ``$`` settings are left as found), a camera's a Zaber
+chain (device 1 its linear stage if it has one, then its rotary stage).
 
 Controller units: Zaber devices at 1 um (linear) or 1 urad (rotary) per microstep, homed at
 the soft limit's minimum; GRBL in mm. Speeds are Table I's (``hardware`` motion class).
@@ -25,16 +31,20 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.files import new_output_dir
 from activesurv_bringup.rig.commission import TABLE_RANGE, camera_spec, check_cameras
+from activesurv_bringup.rig.hardware import paper_rig
 from activesurv_bringup.rig.rigs import nominal
-from activesurv_dispatch.sensors import Sensor, Setup
+from activesurv_dispatch.sensors import Sensor, Setup, load_setup
+from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
 from activesurv_stages.config import motion_class
@@ -93,49 +103,109 @@ def camera_controller(sensor: Sensor, port: Path) -> tuple[ZaberEmulator, dict[s
                  'axes': axes}  # fmt: skip
 
 
-def _bridge(name: str, camera_id: str, config: dict[str, Any], out: Path) -> NodeSpec:
-    path = out / f'{name}.yaml'
-    path.write_text(yaml.safe_dump(config, sort_keys=False))
-    return NodeSpec(
-        f'{name}_bridge',
-        'activesurv_stages.stage_bridge_node',
-        parameters={
-            'config_file': str(path),
-            'camera_id': camera_id,
-            'reconnect_period': 0.5,
-            'home_on_connect': True,  # the lab's own emulated controllers: homing is harmless
-        },
-    )
+EXPOSURE_DELAY = 0.02  # s: the lab cameras' exposure and read-out, as the hardware file says
+JITTER = 0.002  # s: std of their stamps around it
+DROP_RATE = 0.01  # frames that never arrive
+OVERHEAD_RATE = 10.0  # Hz
 
 
 def start_controllers(
-    setup: Setup, cameras: Sequence[str], out: Path
-) -> tuple[list[EmulatorBase], list[NodeSpec]]:
-    """Emulated controllers on pseudo-terminals under ``out/dev`` and their bridge nodes."""
+    setup: Setup, cameras: Sequence[str], out: Path, external: Mapping[str, str]
+) -> tuple[list[EmulatorBase], dict[str, dict[str, Any]]]:
+    """Emulated controllers on pseudo-terminals under ``out/dev`` (none for the stages named in
+    ``external``: their config points at the given port); each stage's controller YAML."""
     dev = out / 'dev'
     dev.mkdir(parents=True, exist_ok=True)
+    emulators: list[EmulatorBase] = []
+    configs: dict[str, dict[str, Any]] = {}
     emu, cfg = table_controller(dev / 'ttyTABLE')
-    emulators: list[EmulatorBase] = [emu]
-    specs = [_bridge(TABLE_ID, TABLE_ID, cfg, out)]
+    configs[TABLE_ID] = _use(emu, cfg, external.get('table'), emulators)
     for s in setup.sensors:
         if s.camera_id in cameras:
             e, cfg = camera_controller(s, dev / f'tty{s.camera_id.upper()}')
-            emulators.append(e)
-            specs.append(_bridge(s.camera_id, s.camera_id, cfg, out))
-    return emulators, specs
+            configs[s.camera_id] = _use(e, cfg, external.get(s.camera_id), emulators)
+    return emulators, configs
 
 
-def lab_specs(rig_file: Path, setup: Setup, cameras: Sequence[str], out: Path) -> list[NodeSpec]:
-    """The simulated cameras (the overhead one and ``cameras``) of the rig, on the wall clock,
-    with nominal factory calibrations as their drivers would ship."""
+def _use(
+    emu: EmulatorBase, cfg: dict[str, Any], port: str | None, emulators: list[EmulatorBase]
+) -> dict[str, Any]:
+    if port is None:
+        emulators.append(emu)
+        return cfg
+    emu.close()  # an external controller takes this stage's place
+    return {**cfg, 'controller': {**cfg['controller'], 'port': port}}
 
+
+def hardware_document(
+    configs: Mapping[str, dict[str, Any]], rate: float, namespace: str
+) -> dict[str, Any]:
+    """The lab as a hardware file (:mod:`activesurv_hardware.hardware_file`)."""
+    rig = paper_rig('lab', namespace)
+    ns = f'/{namespace.strip("/")}' if namespace.strip('/') else ''
+    o = rig.object
+
+    def camera(cid: str, hz: float) -> dict[str, Any]:
+        return {
+            'source': {'topic': f'{ns}/{cid}/image_raw'},
+            'trigger': 'free',
+            'frame_rate': hz,
+            'exposure_delay': EXPOSURE_DELAY,
+        }
+
+    return {
+        'name': 'lab',
+        'namespace': namespace,
+        'calibration': 'calibration',
+        'geometry': {
+            'table': {'x': list(rig.table_x), 'y': list(rig.table_y)},
+            'marker_radius': rig.marker_radius,
+            'top_marker_radius': rig.top_marker_radius,
+            'object': {
+                'top_height': o.top_height,
+                'side_offset': list(o.side_offset),
+                'side_normal': list(o.side_normal),
+            },
+            'layout': 'paper',
+        },
+        'cameras': {
+            cid: {**camera(cid, rate), 'stages': cfg}
+            for cid, cfg in configs.items()
+            if cid != TABLE_ID
+        },
+        'table': {'stages': configs[TABLE_ID]},
+        'overhead': camera('overhead', OVERHEAD_RATE),
+    }
+
+
+def lab_specs(
+    rig_file: Path, setup: Setup, cameras: Sequence[str], out: Path, rate: float, namespace: str
+) -> list[NodeSpec]:
+    """The lab's camera drivers (the overhead one and ``cameras``): free-running on the wall
+    clock, best effort, with nominal factory calibrations as their drivers would ship."""
     factory = out / 'factory'
     nominal().truth().save(factory)
-    specs = [camera_spec('overhead', rig_file, factory, {'camera_type': 'overhead'})]
+    lab = {
+        'exposure_delay': EXPOSURE_DELAY,
+        'jitter': JITTER,
+        'drop_rate': DROP_RATE,
+        'state_hold': 0.3,
+    }
+    specs = [
+        camera_spec(
+            'overhead',
+            rig_file,
+            factory,
+            {**lab, 'camera_type': 'overhead', 'frame_rate': OVERHEAD_RATE, 'seed': 499},
+        )
+    ]
     for i, s in enumerate(setup.sensors):
         if s.camera_id in cameras:
-            specs.append(camera_spec(s.camera_id, rig_file, factory, {'seed': 500 + i}))
-    return specs
+            extra = {**lab, 'frame_rate': rate, 'seed': 500 + i}
+            specs.append(camera_spec(s.camera_id, rig_file, factory, extra))
+    return [
+        replace(s, module='activesurv_sim.lab_camera_node', namespace=namespace) for s in specs
+    ]
 
 
 def run_lab(
@@ -144,38 +214,52 @@ def run_lab(
     cameras: Sequence[str] | None = None,
     progress: Callable[[str], None] = print,
     stop: threading.Event | None = None,
-) -> None:
-    """Run the emulated lab until ``stop`` is set, SIGINT or SIGTERM.
+    controllers: Mapping[str, str] | None = None,
+    frame_rate: float = 30.0,
+    namespace: str = '',
+) -> Path:
+    """Run the emulated lab until ``stop`` is set, SIGINT or SIGTERM; returns its hardware file.
 
     Raises:
-        ConfigError: for unknown cameras or an existing ``out``; NodeDiedError: if a node
-            dies (its log is under ``out/logs``).
+        ConfigError: for unknown cameras or an existing ``out``; NodeDiedError: if a camera
+            driver dies (its log is under ``out/logs``).
     """
-    from activesurv_dispatch.sensors import load_setup
-
     setup = load_setup(motion='fast')
     chosen = check_cameras(setup, cameras)
+    external = dict(controllers or {})
+    unknown = sorted(set(external) - {'table', *chosen})
+    if unknown:
+        raise ConfigError(f'--controller {unknown}: NAME is table or one of {chosen}')
     new_output_dir(out)
     stop = stop or threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    emulators, bridges = start_controllers(setup, chosen, out)
+    emulators, configs = start_controllers(setup, chosen, out, external)
+    hw_file = out / 'hardware.yaml'
+    hw_file.write_text(
+        '# activesurv lab: the emulated rig as a hardware file (activesurv lab wrote it)\n'
+        + yaml.safe_dump(hardware_document(configs, frame_rate, namespace), sort_keys=False)
+    )
+    load_hardware(hw_file)  # what we wrote must read back
     launcher = Launcher(
-        [*bridges, *lab_specs(rig_file, setup, chosen, out)],
+        lab_specs(rig_file, setup, chosen, out, frame_rate, namespace),
         workdir=out / 'logs',
         env=dict(os.environ),
     )
     try:
         launcher.start()
+        where = ', '.join(f'{k}={v}' for k, v in external.items()) or 'none'
         progress(
-            f'lab up: xy table on GRBL ({out / "dev" / "ttyTABLE"}), '
-            f'{", ".join(chosen)} on Zaber, cameras {["overhead", *chosen]}; Ctrl-C to stop'
+            f'lab up: xy table on GRBL, {", ".join(chosen)} on Zaber (external: {where}); '
+            f'cameras free-running at {frame_rate:g} Hz (overhead {OVERHEAD_RATE:g} Hz); '
+            f'hardware file {hw_file}; Ctrl-C to stop'
         )
         while not stop.wait(0.5):
-            launcher.check()  # NodeDiedError if a node died
+            launcher.check()  # NodeDiedError if a camera driver died
     finally:
         launcher.stop()
         for e in emulators:
             e.close()
         time.sleep(0.1)
         progress('lab stopped')
+    return hw_file

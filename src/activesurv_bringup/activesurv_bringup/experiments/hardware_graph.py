@@ -1,0 +1,335 @@
+"""A run on a real rig: the same node graph with stage bridges and camera drivers in place of
+the simulator, on the wall clock.
+
+What changes against a simulated run (:func:`~activesurv_bringup.experiments.graph.graph_specs`):
+
+* every node runs on the wall clock (no ``/clock``, no ``use_sim_time``) in the rig's namespace;
+  run time 0 is ``origin`` (wall seconds since the epoch), chosen a margin after the start so
+  that the stages and the table are in place before the object moves;
+* each camera's stages are a ``stage_bridge`` on its controller (the hardware file's YAML); its
+  frames come from a ROS 2 driver's topic (remapped to the imager) or from our ``camera`` node
+  (``device:``); its imager is told the trigger, frame rate and exposure delay;
+* the xy table is a ``stage_bridge`` too, and ``table_runner`` streams the experiment's path to
+  it and publishes what it reports as ``object_state`` (the truth, as the paper measured it);
+  without a table controller nothing is truth, and the results say so;
+* the recorder records the namespace's topics under their plain names (bags read alike).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from activesurv_bringup.errors import NodeDiedError
+from activesurv_bringup.experiments.experiment import Experiment
+from activesurv_bringup.experiments.graph import Progress, run_graph, run_info
+from activesurv_bringup.experiments.options import RunOptions
+from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
+from activesurv_common.calibration import pose_to_list
+from activesurv_dispatch.sensors import setup_to_dict
+from activesurv_hardware.hardware_file import CameraEntry, Hardware
+from activesurv_launch.launcher import NodeSpec
+
+TABLE_ID = 'xy_table'
+START_MARGIN = 25.0  # s from the launch to run time 0: nodes up, stages and table in place
+
+
+def hardware_files(exp: Experiment, hw: Hardware, out: Path) -> dict[str, str]:
+    """The believed set-up, the calibration and each controller's YAML under ``out/rig``."""
+    assert exp.rig is not None
+    d = out / 'rig'
+    (d / 'controllers').mkdir(parents=True, exist_ok=True)
+    exp.rig.calibration.save(d / 'calibration')
+    (d / 'setup.yaml').write_text(yaml.safe_dump(setup_to_dict(exp.setup), sort_keys=False))
+    files = {'calibration': str(d / 'calibration'), 'setup_file': str(d / 'setup.yaml')}
+    stages = {cid: c.stages_dict for cid, c in hw.cameras.items()}
+    stages[TABLE_ID] = hw.table_dict
+    for cid, doc in stages.items():
+        if doc is not None:
+            path = d / 'controllers' / f'{cid}.yaml'
+            path.write_text(yaml.safe_dump(dict(doc), sort_keys=False))
+            files[f'controller:{cid}'] = str(path)
+    return files
+
+
+def imaging(cam: CameraEntry) -> dict[str, Any]:
+    """What an imager is told about its camera's timing."""
+    return {
+        'use_sim_time': False,
+        'trigger': cam.trigger,
+        'frame_rate': cam.frame_rate,
+        'exposure_delay': cam.exposure_delay,
+        # Free-running frames arrive up to half a period plus the delay after the instant.
+        'frame_timeout': 1.0 + cam.exposure_delay + (1.0 / cam.frame_rate),
+    }
+
+
+def hardware_specs(
+    exp: Experiment,
+    hw: Hardware,
+    bag: Path,
+    origin: float,
+    image_rate: float = 2.0,
+    home: bool = False,
+    motion_correction: bool = True,
+) -> list[NodeSpec]:
+    """Every node of a run on the rig ``hw``, in start order (the table runner last)."""
+    cfg, obj = exp.config, exp.config['object']
+    wall: dict[str, Any] = {'use_sim_time': False}
+    files = hardware_files(exp, hw, bag.parent)
+    over = pose_to_list(exp.overhead(truth=False)[1])
+    pc, dc = cfg['predictor'], cfg['dispatch']
+    info = run_info(exp)
+    info.update(
+        mode='hardware',
+        hardware=str(hw.path),
+        rig=hw.name,
+        namespace=hw.namespace,
+        time_origin=origin,
+        truth='table controller' if hw.table is not None else None,
+    )
+    specs = [
+        NodeSpec(
+            'recorder',
+            'activesurv_recording.recorder_node',
+            parameters={
+                **wall,
+                'output': str(bag),
+                'image_rate': float(image_rate),
+                'run_info': json.dumps(info),
+                'strip_namespace': hw.namespace,
+                'thin_topics': [
+                    '/overhead/image_raw',
+                    '/overhead/camera_info',
+                    *(f'/{cid}/image_raw' for cid in hw.cameras),
+                    *(f'/{cid}/camera_info' for cid in hw.cameras),
+                    hw.overhead.source.value,
+                    *(c.source.value for c in hw.cameras.values()),
+                ],
+                'exclude': ['/rosout', '/parameter_events'],
+            },
+        )
+    ]
+    sources, remap = source_specs(hw.overhead, files['calibration'])
+    specs += sources
+    specs.append(
+        NodeSpec(
+            'overhead_locator',
+            'activesurv_imaging.overhead_locator_node',
+            parameters={
+                **wall,
+                'camera_pose': over,
+                'marker_height': float(obj['top_height']),
+                'marker_radius': hw.geometry.top_marker_radius,
+            },
+            remappings=remap,
+        )
+    )
+    specs += [
+        NodeSpec(
+            'predictor',
+            'activesurv_prediction.predictor_node',
+            parameters={
+                **wall,
+                'marker_height': float(obj['top_height']),
+                'demand_times': [origin + float(t) for t in exp.demand_times],
+                'horizon': int(pc['horizon']),
+                'measurement_std': float(pc['measurement_std']),
+                'jerk_std': float(pc['jerk_std']),
+                'model': str(pc.get('model', 'imm')),
+                'confirm_fixes': int(pc['confirm_fixes']),
+                'side_marker_offset': [float(v) for v in obj['side_offset']],
+                'side_marker_normal': [float(v) for v in obj['side_normal']],
+            },
+        ),
+        NodeSpec(
+            'dispatcher',
+            'activesurv_dispatch.dispatcher_node',
+            parameters={
+                **wall,
+                'motion_class': exp.system,
+                'setup_file': files['setup_file'],
+                'k': int(cfg['k']),
+                'rho': float(dc['rho']),
+                'capture_lead': float(dc['capture_lead']),
+                'settle_time': float(dc['settle_time']),
+            },
+        ),
+        NodeSpec(
+            'frames',
+            'activesurv_liveview.frames_node',
+            parameters={
+                **wall,
+                'motion_class': exp.system,
+                'overhead_pose': over,
+                'setup_file': files['setup_file'],
+            },
+        ),
+        NodeSpec(
+            'fusion',
+            'activesurv_fusion.fusion_node',
+            parameters={
+                **wall,
+                'collect_timeout': float(cfg['fusion']['collect_timeout']),
+                'z_sigma': float(cfg['fusion']['z_sigma']),
+                'journal': str(bag.parent / 'logs' / 'fusion.journal'),
+            },
+        ),
+    ]
+    for s in exp.setup.sensors:
+        cid = s.camera_id
+        cam = hw.cameras[cid]
+        specs.append(bridge_spec(cid, files[f'controller:{cid}'], home))
+        sources, remap = source_specs(cam, files['calibration'])
+        specs += sources
+        specs.append(
+            NodeSpec(
+                f'{cid}_imager',
+                'activesurv_imaging.imager_node',
+                parameters={
+                    **imaging(cam),
+                    'camera_id': cid,
+                    'marker_radius': exp.setup.marker_radius,
+                    'motion_correction': motion_correction,
+                    **mount_parameters(s),
+                },
+                remappings=remap,
+            )
+        )
+    if hw.table is not None:
+        specs.append(bridge_spec(TABLE_ID, files[f'controller:{TABLE_ID}'], home))
+    specs = [_in(hw.namespace, spec) for spec in specs]
+    specs.append(_in(hw.namespace, table_runner_spec(exp, origin, hw.table is not None)))
+    return specs
+
+
+def table_runner_spec(exp: Experiment, origin: float, run_path: bool) -> NodeSpec:
+    """The table runner: the path on the controller (``run_path``), its reports as truth."""
+    obj, spec = exp.config['object'], exp.actual_spec
+    params: dict[str, Any] = {
+        'run_path': run_path,
+        'path_type': str(spec['type']),
+        'speed': float(obj['speed']),
+        'acceleration': float(obj['acceleration']),
+        'start_time': float(obj['start_time']),
+        'time_origin': float(origin),
+        'top_height': float(obj['top_height']),
+        'side_offset': [float(v) for v in obj['side_offset']],
+        'side_normal': [float(v) for v in obj['side_normal']],
+    }
+    if spec['type'] == 'csv':
+        params['csv_file'] = str(spec['csv'])
+    else:
+        params['path_points'] = [float(v) for v in spec['points']]
+    return NodeSpec('table_runner', 'activesurv_hardware.table_runner_node', parameters=params)
+
+
+def _in(namespace: str, spec: NodeSpec) -> NodeSpec:
+    if not namespace:
+        return spec
+    return NodeSpec(
+        spec.name,
+        spec.module,
+        namespace,
+        spec.parameters,
+        spec.remappings,
+        spec.required,
+        spec.host,
+        spec.members,
+    )
+
+
+def initial_goals(exp: Experiment) -> Sequence[tuple[str, Sequence[str], Sequence[float]]]:
+    """Each camera's stage goal to its initial pose (placed before the object moves)."""
+    return [
+        (s.camera_id, list(s.joint_names), [float(v) for v in exp.setup.initial[s.camera_id]])
+        for s in exp.setup.sensors
+    ]
+
+
+def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
+    """``before_start`` of a hardware run: every camera to its initial pose, before run time 0
+    (the paper placed them there before each experiment; a static system never moves them)."""
+
+    def place(monitor: Any, progress: Any) -> None:
+        from sensor_msgs.msg import JointState
+
+        from activesurv_common.ros import qos, topics
+        from activesurv_interfaces.msg import StageGoal
+
+        node = monitor.node
+        states: dict[str, Any] = {}
+        goals = initial_goals(exp)
+        subs, pubs = [], []
+        for cid, _, _ in goals:
+            subs.append(
+                node.create_subscription(
+                    JointState,
+                    topics.joint_states(cid),
+                    lambda m, cid=cid: states.__setitem__(cid, m),
+                    qos.SENSOR,
+                )
+            )
+            pubs.append(node.create_publisher(StageGoal, topics.goal(cid), qos.GOAL))
+        for pub, (_, names, q) in zip(pubs, goals, strict=True):
+            msg = StageGoal(joint_names=list(names), positions=list(q))
+            msg.max_velocities = [0.0] * len(q)
+            pub.publish(msg)
+
+        def placed() -> bool:
+            for cid, names, q in goals:
+                m = states.get(cid)
+                if m is None:
+                    return False
+                at = dict(zip(m.name, m.position, strict=False))
+                if any(abs(at.get(n, math.inf) - v) > 1e-3 for n, v in zip(names, q, strict=True)):
+                    return False
+            return True
+
+        deadline = time.monotonic() + timeout
+        while not placed() and time.monotonic() < deadline:
+            monitor.spin(0.1)
+        left = origin - time.time()
+        progress(
+            ('cameras at their initial poses' if placed() else 'cameras NOT all placed in time')
+            + f'; run time 0 in {left:.1f} s'
+        )
+        if left < 2.0:
+            raise NodeDiedError(
+                f'the rig came up too late for run time 0 ({-left:.1f} s past it): the stages or '
+                'the table did not answer in time'
+            )
+
+    return place
+
+
+def run_hardware(
+    exp: Experiment,
+    hw: Hardware,
+    out_dir: Path,
+    options: RunOptions,
+    progress: Progress,
+    home: bool = False,
+    motion_correction: bool = True,
+) -> Path:
+    """Run ``exp`` on the rig ``hw`` (wall clock); returns the bag directory."""
+    origin = time.time() + START_MARGIN
+    bag = out_dir / 'bag'
+    out_dir.mkdir(parents=True, exist_ok=True)
+    specs = hardware_specs(exp, hw, bag, origin, options.image_rate, home, motion_correction)
+    opts = replace(options, time_origin=origin, namespace=hw.namespace, processes='nodes')
+    progress(
+        f'hardware run on {hw.name}: {len(specs)} nodes; run time 0 at wall '
+        f'{time.strftime("%H:%M:%S", time.localtime(origin))}'
+        + ('' if hw.table is not None else '; no table controller: no truth')
+    )
+    return run_graph(
+        exp, out_dir, opts, progress, specs=specs, before_start=place_cameras(exp, origin)
+    )

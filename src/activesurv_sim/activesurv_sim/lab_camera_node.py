@@ -1,0 +1,171 @@
+"""The ``lab_camera`` node: a simulated camera that behaves like a free-running camera driver.
+
+For the hardware-in-the-loop lab (``activesurv lab``). It exposes on its own wall clock at
+``frame_rate`` (its phase is not the demand instants'), renders the scene as the stage and table
+controllers report it (``<camera_id>/stage/joint_states``, ``object_state``), and publishes best
+effort, as camera drivers do, each frame stamped on arrival: the exposure instant plus
+``exposure_delay`` (exposure and read-out) plus Gaussian ``jitter``; ``drop_rate`` of the frames
+never arrive. Nothing here knows a capture request. Optics and mount come from the rig file
+(the truth), ``camera_info`` from the calibration the lab's driver ships (``camera_info_file``).
+What the carriage carries follows what the lab is used for: the object while something reports
+it (a hardware run's ``table_runner`` publishes ``object_state``), else the commissioning boards
+at the position the table controller reports (``xy_table/stage/joint_states``).
+
+Parameters: those of ``sim_camera`` (``config/sim_camera.yaml``) and ``exposure_delay``,
+``jitter``, ``drop_rate`` (see ``config/lab_camera.yaml``).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+from activesurv_common.errors import CommonError
+from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros.conversions import (
+    MOUNT_PARAMETERS,
+    camera_info_from_model,
+    declare_mount_parameters,
+    gray_to_image,
+    joint_vector,
+    mount_from_parameters,
+    object_state_vector,
+    sec_to_time,
+    time_to_sec,
+)
+from activesurv_common.ros.node import run_node
+from activesurv_common.ros.parameters import Param, declare
+from activesurv_interfaces.msg import ObjectState
+from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
+from activesurv_sim.errors import SimError
+from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
+
+LAB_PARAMS = (
+    Param('exposure_delay', 0.02, 's from exposure to the frame stamp (read-out)', minimum=0.0),
+    Param('jitter', 0.002, 'std of the stamp around it (s)', minimum=0.0),
+    Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
+)
+PARAMS = CAMERA_PARAMS + LAB_PARAMS
+
+
+class LabCameraNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('lab_camera', **kwargs)
+        declare(self, PARAMS)
+        declare_mount_parameters(self)
+        v = {q.name: self.get_parameter(q.name).value for q in PARAMS}
+        self.camera_id = str(v['camera_id'])
+        mount = mount_from_parameters(
+            self.camera_id, {n: self.get_parameter(n).value for n in MOUNT_PARAMETERS}
+        )
+        params = {q.name: v[q.name] for q in CAMERA_PARAMS}
+        self.sim = simulated_camera({**params, 'payload': 'object'}, mount)
+        self.boards = simulated_camera({**params, 'payload': 'board'}, mount)
+        self.sim.warm_up()
+        self.info_model = published_model(params, self.sim)
+        self.object_seen = -1e18  # wall time of the last object state
+        self.frame_id = f'{self.camera_id}_optical_frame'
+        rate = float(v['frame_rate'])
+        if not rate > 0.0:
+            raise SimError('a lab camera free-runs: frame_rate must be > 0 Hz')
+        self.delay, self.jitter = float(v['exposure_delay']), float(v['jitter'])
+        self.drop_rate, self.hold = float(v['drop_rate']), float(v['state_hold'])
+        self.rng = np.random.default_rng(int(v['seed']))
+        self.frames = self.dropped = self.missed = 0
+        self.pending: list[float] = []
+        self.render_s = 0.0
+        self._image_pub = self.create_publisher(Image, topics.image(self.camera_id), qos.SENSOR)
+        self._info_pub = self.create_publisher(
+            CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR
+        )
+        self._diag_pub = self.create_publisher(
+            diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
+        )
+        self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
+        table = topics.joint_states(TABLE_ID)
+        self.create_subscription(JointState, table, self._on_table, qos.SENSOR)
+        if self.sim.joint_names:
+            self.create_subscription(
+                JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
+            )
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(1.0 / rate, self._expose, clock=steady)
+        self.create_timer(1.0, self._publish_diagnostics, clock=steady)
+
+    def _on_object(self, msg: ObjectState) -> None:
+        self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg))
+        self.object_seen = time.monotonic()
+        self._develop()
+
+    def _on_table(self, msg: JointState) -> None:
+        xy = joint_vector(msg, TABLE_JOINTS)
+        if xy is not None:
+            self.boards.objects.add(time_to_sec(msg.header.stamp), np.r_[xy, [0.0] * 7])
+            self._develop()
+
+    def _on_joints(self, msg: JointState) -> None:
+        q = joint_vector(msg, self.sim.joint_names)
+        if q is not None:
+            for sim in (self.sim, self.boards):
+                sim.joints.add(time_to_sec(msg.header.stamp), q)
+            self._develop()
+
+    def _expose(self) -> None:
+        """An exposure now; its frame is made once the controllers have reported past it."""
+        self.pending.append(self.get_clock().now().nanoseconds * 1e-9)
+        self._develop()
+
+    def _develop(self) -> None:
+        # What the camera saw at t is where the stages and the table were at t: render it when
+        # reports stamped at or after t have come (they come at the controllers' poll rate).
+        sim = self.sim if time.monotonic() - self.object_seen < 2.0 else self.boards
+        now = self.get_clock().now().nanoseconds * 1e-9
+        while self.pending:
+            t = self.pending[0]
+            seen = (sim.objects.latest_time or -1e18) >= t and (
+                not sim.joint_names or (sim.joints.latest_time or -1e18) >= t
+            )
+            if not seen and now - t < self.hold:
+                return
+            self.pending.pop(0)
+            self._shoot(sim, t)
+
+    def _shoot(self, sim: Any, t: float) -> None:
+        started = time.perf_counter()
+        try:
+            gray = sim.render_at(t, self.hold)
+        except (SimError, CommonError):
+            self.missed += 1  # no state yet (controllers still connecting): nothing to see
+            return
+        self.render_s += time.perf_counter() - started
+        if self.rng.random() < self.drop_rate:
+            self.dropped += 1
+            return
+        stamp = sec_to_time(t + self.delay + self.jitter * float(self.rng.standard_normal()))
+        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+        self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
+        self.frames += 1
+
+    def _publish_diagnostics(self) -> None:
+        ms = 1e3 * self.render_s / max(self.frames + self.dropped, 1)
+        s = diagnostics.status(
+            f'activesurv/lab_camera/{self.camera_id}',
+            self.camera_id,
+            f'{self.frames} frames, {self.dropped} dropped, render {ms:.1f} ms',
+            dict(frames=self.frames, dropped=self.dropped, missed=self.missed, render_ms=ms),
+            diagnostics.OK,
+        )
+        self._diag_pub.publish(diagnostics.array(self.get_clock().now().to_msg(), s))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node('lab_camera', LabCameraNode, args, errors=(SimError, CommonError))
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,7 +1,7 @@
 """The import picture of the packages: common at the bottom, sim beside imaging, thin nodes.
 
 Every import statement of every package module (function-level ones included) is read with
-``ast``; these rules are the architecture the README's diagram draws.
+``ast``; these rules are the architecture docs/node-graph.md's diagram draws.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from rclpy.serialization import serialize_message
 def test_cdr_header_reads_stamp_and_frame_id() -> None:
     from sensor_msgs.msg import Image
 
-    from activesurv_recording.load_node import cdr_header
+    from activesurv_recording.bagio import cdr_header
 
     msg = Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(18))
     msg.header.stamp.sec = 1795236220

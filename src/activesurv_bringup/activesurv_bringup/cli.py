@@ -486,8 +486,15 @@ def _run_on_hosts(
     return doc
 
 
-def surveil(out: Path, session: Any, options: RunOptions | None = None) -> dict[str, Any]:
-    """Run a continuous session into ``out`` (new or empty); returns its results document."""
+def surveil(
+    out: Path,
+    session: Any,
+    options: RunOptions | None = None,
+    hardware: Any = None,
+    home: bool = False,
+) -> dict[str, Any]:
+    """Run a continuous session into ``out`` (new or empty); returns its results document
+    (with ``hardware``, a :class:`~activesurv_hardware.hardware_file.Hardware`, on that rig)."""
     from activesurv_bringup.experiments.surveil import run_surveil
 
     new_output_dir(out)
@@ -496,7 +503,7 @@ def surveil(out: Path, session: Any, options: RunOptions | None = None) -> dict[
     def say(text: str) -> None:
         print(f'  surveil: {text}', flush=True)
 
-    doc = run_surveil(out, session, options, say)
+    doc = run_surveil(out, session, options, say, hardware, home)
     s = doc['summary']
     lat = s['latency_median_ms']
     say(
@@ -696,8 +703,16 @@ def _dispatch(args: argparse.Namespace) -> None:
         def say(text: str) -> None:
             print(f'  surveil: {text}', flush=True)
 
+        hw = None
+        if args.hardware is not None:
+            from activesurv_bringup.rig.hardware import hardware_choice, read
+
+            hw = read(args.hardware)
+            rig = hardware_choice(hw, args.calibration)
+        else:
+            rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
         session = SurveilOptions(
-            rig=choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say),
+            rig=rig,
             duration=args.duration,
             arrival_interval=args.arrival_interval,
             demand_interval=args.demand_interval,
@@ -706,7 +721,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             system=args.system,
             seed=args.seed,
         )
-        surveil(args.out, session, run_options(args))
+        surveil(args.out, session, run_options(args), hw, args.home)
     elif args.command == 'replay':
         replay(args.bag, args.out, args.rtf, args.foxglove)
     elif args.command == 'bag':

@@ -144,6 +144,14 @@ class CameraModel:
             'camera_matrix': {'rows': 3, 'cols': 3, 'data': self.K.reshape(-1).tolist()},
             'distortion_model': 'plumb_bob',
             'distortion_coefficients': {'rows': 1, 'cols': 5, 'data': self.dist.tolist()},
+            # A monocular camera as camera_calibration writes it: no rectification, P = [K | 0]
+            # (camera_calibration_parsers reads both unconditionally).
+            'rectification_matrix': {'rows': 3, 'cols': 3, 'data': np.eye(3).reshape(-1).tolist()},
+            'projection_matrix': {
+                'rows': 3,
+                'cols': 4,
+                'data': np.hstack([self.K, np.zeros((3, 1))]).reshape(-1).tolist(),
+            },
         }
 
     @staticmethod

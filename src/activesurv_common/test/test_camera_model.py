@@ -52,3 +52,30 @@ def test_invalid_intrinsics() -> None:
         CameraModel(640, 480, np.diag([-1.0, 1.0, 1.0]))
     with pytest.raises(CalibrationError, match='size'):
         CameraModel(0, 480, np.eye(3))
+
+
+def test_the_calibration_file_is_what_camera_calibration_writes(tmp_path: Path) -> None:
+    import yaml
+
+    from activesurv_common.camera_model import dynamic_camera
+
+    cam = dynamic_camera('cam1')
+    cam.save(tmp_path / 'cam1.yaml')
+    doc = yaml.safe_load((tmp_path / 'cam1.yaml').read_text())
+    # camera_calibration_parsers reads all of these unconditionally (a driver's
+    # camera_info_manager refuses a file without them).
+    for key in (
+        'image_width',
+        'image_height',
+        'camera_name',
+        'camera_matrix',
+        'distortion_model',
+        'distortion_coefficients',
+        'rectification_matrix',
+        'projection_matrix',
+    ):
+        assert key in doc, key
+    assert doc['rectification_matrix']['data'] == [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0]
+    P = np.array(doc['projection_matrix']['data']).reshape(3, 4)
+    assert np.allclose(P[:, :3], cam.K)
+    assert np.allclose(P[:, 3], 0.0)

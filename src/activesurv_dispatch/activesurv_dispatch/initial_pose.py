@@ -11,7 +11,7 @@ observation); a fast camera near where it is needed first. Cameras are placed in
 Its cameras can never move, so they are placed together: a coordinate ascent maximises the
 coverage of the demands (each demand's first view counts most, its k-th least, more count
 nothing), then the summed visibility. This is the paper's "the target can be imaged by at least
-three cameras at any demand point", as far as the optics allow (README, "Choices").
+three cameras at any demand point", as far as the optics allow (docs/design-choices.md).
 
 The search is a grid over the joint space, then a finer grid around the best cell.
 """

@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from activesurv_hardware.errors import HardwareError
-from activesurv_sim.xytable import ObjectModel, ObjectState, TimedPath
+from activesurv_sim.stream import ObjectStream
+from activesurv_sim.xytable import PARKED, ObjectModel, ObjectState, TimedPath
 
 Array = NDArray[np.float64]
 
@@ -93,11 +94,54 @@ class TruthFromController:
         self.model = model
         self._last: tuple[float, Array] | None = None
 
-    def state(self, t: float, xy: Array) -> ObjectState:
-        """The state at ``t`` (the poll's stamp) with the carriage reported at ``xy``."""
+    def state(self, t: float, xy: Array, present: bool = True) -> ObjectState:
+        """The state at ``t`` (the poll's stamp) with the carriage reported at ``xy``; with no
+        object on the table (``present`` False) parked out of every view, as the simulator has
+        it."""
+        if not present:
+            self._last = None
+            return self.model.at(PARKED, np.zeros(2), False, present=False)
         p = np.asarray(xy, dtype=np.float64)[:2]
         v = np.zeros(2)
         if self._last is not None and t > self._last[0]:
             v = (p - self._last[1]) / (t - self._last[0])
         self._last = (t, p)
         return self.model.at(p, v, bool(np.linalg.norm(v) > 1e-4))
+
+
+class StreamRunner:
+    """A surveillance session's objects on a real table, one after another.
+
+    Each pass of the stream (:class:`~activesurv_sim.stream.ObjectStream`) is streamed as a
+    :class:`PathRunner` from its entry; between passes the carriage goes to the next pass's
+    start at ``return_speed``, and no object is on the table as far as anything is told (a cell
+    takes the part off at the end and puts the next one on at the start).
+    """
+
+    def __init__(
+        self,
+        stream: ObjectStream,
+        segment: float = 0.1,
+        lead: float = 0.2,
+        return_speed: float = 0.1,
+    ) -> None:
+        self.stream = stream
+        self.segment, self.lead, self.return_speed = segment, lead, return_speed
+        self._runners: dict[int, PathRunner] = {}
+
+    def present(self, t: float) -> bool:
+        """Whether an object is on the table at ``t``."""
+        return self.stream.pass_at(t) is not None
+
+    def move(self, t: float) -> TableMove | None:
+        p = self.stream.pass_at(t + self.lead)
+        if p is None:
+            p = next(q for q in self.stream.passes if q.entered > t)
+        runner = self._runners.get(p.id)
+        if runner is None:
+            runner = PathRunner(p.path, p.entered, self.segment, self.lead, self.return_speed)
+            self._runners = {p.id: runner}  # the pass before is done
+        return runner.move(t)
+
+    def finished(self, t: float) -> bool:
+        return False  # a session runs until it is stopped

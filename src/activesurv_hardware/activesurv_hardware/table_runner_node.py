@@ -24,17 +24,26 @@ from activesurv_common.ros.conversions import joint_vector, sec_to_time, time_to
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_hardware.errors import HardwareError
-from activesurv_hardware.path_runner import PathRunner, TruthFromController
+from activesurv_hardware.path_runner import PathRunner, StreamRunner, TruthFromController
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_interfaces.msg import StageGoal
 from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.stream import PATH_KINDS, ObjectStream
 from activesurv_sim.xytable import ObjectModel, named_path
 from activesurv_stages.errors import StageError
 
 TABLE = 'xy_table'
 PARAMS = (
     Param('run_path', True, 'stream the path to the table (False: only publish the truth)'),
-    Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv')),
+    Param(
+        'path_type',
+        'parabola',
+        "object path; stream: a session's objects one after another",
+        choices=('parabola', 'line', 'csv', 'stream'),
+    ),
+    Param('stream_seed', 1, "stream: seeds the objects' paths"),
+    Param('arrival_interval', 30.0, 'stream: s from one entry to the next', above=0.0),
+    Param('path_kinds', list(PATH_KINDS), 'stream: path kinds drawn'),
     Param('path_points', [0.13, 0.05, 0.25, 0.09, 0.37, 0.05], 'path points (m)'),
     Param('csv_file', '', 't,x,y CSV for path_type csv'),
     Param('speed', 0.02, 'path speed (m/s)', above=0.0),
@@ -69,8 +78,21 @@ class TableRunnerNode(Node):
         self.frame_id = str(v['frame_id'])
         origin = float(v['time_origin'])
         self.origin = origin if origin > 0.0 else time.time() + 5.0
-        self.runner: PathRunner | None = None
-        if v['run_path']:
+        self.runner: PathRunner | StreamRunner | None = None
+        if v['run_path'] and v['path_type'] == 'stream':
+            stream = ObjectStream(
+                int(v['stream_seed']),
+                float(v['arrival_interval']),
+                float(v['start_time']),
+                [str(k) for k in v['path_kinds']],
+                speed=float(v['speed']),
+                acceleration=float(v['acceleration']),
+                model=model,
+            )
+            self.runner = StreamRunner(
+                stream, float(v['segment']), float(v['lead']), 2 * float(v['approach_speed'])
+            )
+        elif v['run_path']:
             path = named_path(
                 str(v['path_type']),
                 [float(x) for x in v['path_points']],
@@ -100,7 +122,9 @@ class TableRunnerNode(Node):
         if q is None:
             return
         self.xy = np.asarray(q, dtype=np.float64)
-        state = self.truth.state(time_to_sec(msg.header.stamp), self.xy)
+        t = time_to_sec(msg.header.stamp)
+        present = not isinstance(self.runner, StreamRunner) or self.runner.present(t - self.origin)
+        state = self.truth.state(t, self.xy, present)
         self._state_pub.publish(object_state_msg(state, msg.header.stamp, self.frame_id))
 
     def _on_tick(self) -> None:
@@ -118,7 +142,7 @@ class TableRunnerNode(Node):
         goal.joint_names = list(self.joints)
         goal.positions = [move.x, move.y]
         goal.max_velocities = [max(float(s) * move.speed, 1e-5) for s in share]
-        goal.arrival_time = sec_to_time(self.origin + t + self.runner.lead)
+        goal.arrival_time = sec_to_time(self.origin + t + 0.3)
         self._goal_pub.publish(goal)
         self.moves += 1
 

@@ -20,7 +20,7 @@ board's image changes across the frame (the two move it alike to within (x/z)^2 
 refinement weights each sighting's shape by the corner finder's scatter and its place by the
 table's and stages' accuracy (:class:`NoiseModel`) so that this shape counts; what the views
 cannot carry the mount fit absorbs, and the pair predicts rays in the world as well as the
-truth does (README, "Commissioning").
+truth does (docs/commissioning.md).
 """
 
 from __future__ import annotations

@@ -24,8 +24,7 @@ from activesurv_common.ros import qos
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_liveview.live import DEFAULT_TOPICS, LatchedCache, LiveFilter
-from activesurv_recording.bagio import message_class, recording_qos, typestore
-from activesurv_recording.load_node import cdr_header
+from activesurv_recording.bagio import cdr_header, message_class, recording_qos, typestore
 
 PARAMS = (
     Param('port', 8765, 'WebSocket port', minimum=1),

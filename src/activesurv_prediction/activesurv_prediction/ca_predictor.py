@@ -12,7 +12,7 @@ Why constant acceleration: the paper's paths are straight lines and parabolas. A
 driven at constant x-speed has constant y-acceleration, and at constant path speed an
 acceleration that turns slowly. Constant velocity would miss ``a t^2 / 2`` (about 5-10 mm
 two seconds ahead at 20 mm/s). The jerk noise ``q`` lets the acceleration follow curves,
-stops and speed changes. Its default comes from the consistency benchmark (README,
+stops and speed changes. Its default comes from the consistency benchmark (docs/performance.md,
 "Prediction").
 
 Outliers: a fix whose innovation has a squared Mahalanobis distance above ``gate``

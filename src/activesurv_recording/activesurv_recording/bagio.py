@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import struct
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -263,6 +264,21 @@ class BagMessage:
     t_ns: int
     msg: Any
     raw: bytes
+
+
+def cdr_header(data: bytes) -> tuple[float, str]:
+    """(stamp in s, frame_id) of a serialized message that starts with a std_msgs/Header.
+
+    Raises:
+        ValueError: if the bytes are not a CDR message with a header.
+    """
+    if len(data) < 16 or data[0] != 0:
+        raise ValueError('not a CDR-encapsulated message')
+    order = '<' if data[1] & 1 else '>'
+    sec, nanosec, n = struct.unpack_from(f'{order}iII', data, 4)
+    if n == 0 or 16 + n > len(data):
+        raise ValueError('bad frame_id length in the header')
+    return sec + 1e-9 * nanosec, data[16 : 16 + n - 1].decode('utf-8', 'replace')
 
 
 def strip_namespace(topic: str, namespace: str) -> str:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import statistics
-import struct
 import sys
 import time
 from pathlib import Path
@@ -31,25 +30,11 @@ from sensor_msgs.msg import Image
 
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
+from activesurv_recording.bagio import cdr_header
 
 
 def stream_topic(camera_id: str) -> str:
     return f'{camera_id}/stream/image_raw'
-
-
-def cdr_header(data: bytes) -> tuple[float, str]:
-    """(stamp in s, frame_id) of a serialized message that starts with a std_msgs/Header.
-
-    Raises:
-        ValueError: if the bytes are not a CDR message with a header.
-    """
-    if len(data) < 16 or data[0] != 0:
-        raise ValueError('not a CDR-encapsulated message')
-    order = '<' if data[1] & 1 else '>'
-    sec, nanosec, n = struct.unpack_from(f'{order}iII', data, 4)
-    if n == 0 or 16 + n > len(data):
-        raise ValueError('bad frame_id length in the header')
-    return sec + 1e-9 * nanosec, data[16 : 16 + n - 1].decode('utf-8', 'replace')
 
 
 PARAMS = (

@@ -8,7 +8,7 @@
   had to the true target at the demand instant; a camera that did not see the marker contributes
   nothing. This is the "observed visibility" of the paper's Figs. 10-11.
 
-``results.json`` follows the contract in README ("Experiments"): metres and radians.
+``results.json`` follows the contract in docs/experiments.md: metres and radians.
 """
 
 from __future__ import annotations

@@ -377,7 +377,7 @@ def paper_section(docs: Sequence[dict[str, Any]]) -> list[str]:
         *[f'- Paper, Set {k}: {PAPER_FINDINGS[k]}.' for k in sets],
         '- Ours are smaller: rendered images have no lens aberration beyond k1, no lighting '
         'change and a perfectly flat, printed marker; what remains is pixel noise, blur, '
-        'quantisation, stage errors and the calibration residuals above (README, "Rigs and '
+        'quantisation, stage errors and the calibration residuals above (docs/commissioning.md, "Rigs and '
         'calibrations").',
         '',
     ]
@@ -428,7 +428,7 @@ def calibration_section(docs: Sequence[dict[str, Any]]) -> list[str]:
             f'Overhead camera: reprojection RMS {rms:.3f} px'
             + (f', image-to-table mapping within {1e3 * mapping:.3f} mm' if mapping else '')
             + '. Errors are against the simulated rig (a live rig has only the standard '
-            'deviations of the fit; the README explains the principal point).',
+            'deviations of the fit; docs/commissioning.md explains the principal point).',
             '',
         ]
     return lines

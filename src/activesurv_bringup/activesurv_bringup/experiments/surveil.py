@@ -17,6 +17,7 @@ import json
 import math
 import signal
 import statistics
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,11 +29,17 @@ import numpy as np
 from activesurv_bringup.errors import BagError, ConfigError
 from activesurv_bringup.experiments.experiment import Experiment, load_experiment
 from activesurv_bringup.experiments.graph import Progress, Until, graph_specs, run_graph
+from activesurv_bringup.experiments.hardware_graph import (
+    START_MARGIN,
+    hardware_specs,
+    place_cameras,
+)
 from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.experiments.records import demand_record, msg_stamp, msg_vector
 from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
+from activesurv_hardware.hardware_file import Hardware
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.bagio import read_bag, run_info
 from activesurv_sim.stream import PATH_KINDS, ObjectStream
@@ -193,10 +200,55 @@ class _Stop:
             signal.signal(sig, handler)
 
 
+def hardware_surveil_specs(
+    exp: Experiment, hw: Hardware, bag: Path, s: SurveilOptions, opts: RunOptions, home: bool
+) -> list[NodeSpec]:
+    """A session on a real rig: the hardware graph, continuous, the table running the stream."""
+    assert opts.time_origin is not None
+    specs = hardware_specs(exp, hw, bag, opts.time_origin, opts.image_rate, home)
+    info = surveil_info(exp, s)
+    out = []
+    for spec in specs:
+        p = dict(spec.parameters)
+        if spec.name == 'recorder':
+            old = json.loads(p['run_info'])
+            keep = ('hardware', 'rig', 'namespace', 'time_origin', 'truth', 'setup')
+            info.update({k: old[k] for k in keep if k in old})
+            p.update(run_info=json.dumps(info), max_bag_duration=float(s.max_bag_duration))
+        elif spec.name == 'predictor':
+            p.pop('demand_times', None)
+            p.update(
+                demand_mode='lines' if s.demand_at else 'interval',
+                demand_interval=float(s.demand_interval),
+                demand_lines=[float(x) for x in s.demand_at] or [0.25],
+                demand_region=[float(v) for v in DEMAND_REGION],
+            )
+        elif spec.name == 'table_runner':
+            p.update(
+                path_type='stream',
+                stream_seed=int(s.seed),
+                arrival_interval=float(s.arrival_interval),
+                path_kinds=list(s.path_kinds),
+                start_time=FIRST_ENTRY,
+            )
+        elif spec.name == 'fusion':
+            p.pop('journal', None)
+        out.append(replace(spec, parameters=p))
+    return out
+
+
 def run_surveil(
-    out_dir: Path, s: SurveilOptions, options: RunOptions | None = None, progress: Progress = print
+    out_dir: Path,
+    s: SurveilOptions,
+    options: RunOptions | None = None,
+    progress: Progress = print,
+    hardware: Hardware | None = None,
+    home: bool = False,
 ) -> dict[str, Any]:
     """Run a continuous session into ``out_dir`` (bag, logs, results.json); returns results.
+
+    With ``hardware`` the session runs on that rig, on the wall clock (the table, if it has
+    one, runs the stream's objects one after another).
 
     Raises:
         ConfigError: for bad options.
@@ -205,7 +257,16 @@ def run_surveil(
     opts = options or RunOptions()
     exp = load_experiment('A', s.system, s.seed, rig=s.rig)
     bag = out_dir / 'bag'
-    specs = surveil_specs(exp, bag, s, opts)
+    before_start = None
+    if hardware is None:
+        specs = surveil_specs(exp, bag, s, opts)
+    else:
+        origin = time.time() + START_MARGIN
+        opts = replace(
+            opts, time_origin=origin, namespace=hardware.namespace, processes='nodes', rtf=1.0
+        )
+        specs = hardware_surveil_specs(exp, hardware, bag, s, opts, home)
+        before_start = place_cameras(exp, origin)
     limit = (s.duration or 7 * 24 * 3600.0) / max(opts.rtf, 1e-3) * 1.5 + 120.0
     last = [-1e9]
 
@@ -231,7 +292,15 @@ def run_surveil(
                 f'answered, {ok} ok'
             )
 
-        run_graph(exp, out_dir, opts, progress, until=Until(done, limit, report), specs=specs)
+        run_graph(
+            exp,
+            out_dir,
+            opts,
+            progress,
+            until=Until(done, limit, report),
+            specs=specs,
+            before_start=before_start,
+        )
     doc = evaluate_surveil(bag)
     (out_dir / 'results.json').write_text(json.dumps(doc, indent=2) + '\n')
     return doc
@@ -249,6 +318,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     info = run_info(bag)
     if info.get('mode') != 'surveil':
         raise BagError(f'bag {bag} is not a surveil session (mode {info.get("mode")!r})')
+    origin = float(info.get('time_origin') or 0.0)  # a hardware session: wall clock
     truth = TimeSeries(6, capacity=10**7)
     present = TimeSeries(1, capacity=10**7)
     requests: dict[int, Any] = {}
@@ -295,6 +365,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             continue
         rec = demand_record(j, tj, s, req, observations.get(j, []), estimates.get(j), model)
         doc = rec.to_json()
+        doc['t'] = tj - origin
         doc['object'] = object_of.get(j, 0)
         demands.append(doc)
     st = info['stream']
@@ -310,15 +381,15 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     for oid, t in sorted(confirmed.items()):
         if oid == 0:
             continue
-        p = stream.pass_at(t)
+        p = stream.pass_at(t - origin)
         objects.append(
             {
                 'id': oid,
                 'entered': None if p is None else p.entered,
-                'left': None if p is None or p.left > end else p.left,
+                'left': None if p is None or p.left > end - origin else p.left,
                 'path_kind': None if p is None else p.kind,
                 'truth_id': None if p is None else p.id,
-                'confirmed': t,
+                'confirmed': t - origin,
                 'demands': sum(1 for d in demands if d['object'] == oid),
             }
         )
@@ -328,7 +399,12 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         'system': info.get('system'),
         'seed': info.get('seed'),
         'demand_mode': info['demands']['mode'],
-        'simulated_seconds': end,
+        'simulated_seconds': end - origin,
+        **(
+            {'hardware': info['hardware'], 'truth': info.get('truth')}
+            if 'hardware' in info
+            else {}
+        ),
         'objects': objects,
         'demands': demands,
         'summary': {

@@ -18,9 +18,11 @@ simulation each estimate's error against the rig).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -57,6 +59,7 @@ from activesurv_imaging.commissioning import (
 )
 from activesurv_imaging.errors import CalibrationError
 from activesurv_launch.launcher import Launcher, NodeSpec
+from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
 from activesurv_sim.rig import Rig
@@ -64,6 +67,7 @@ from activesurv_sim.rig import Rig
 Array = NDArray[np.float64]
 Progress = Callable[[str], None]
 TABLE_RANGE = ((0.0, 0.5), (0.0, 0.2))  # m, Table I
+FRAMES_KEPT = 60  # per camera: two seconds of a 30 Hz driver
 C1_TURN = 0.02  # rad: keeps a centred board whole in a 7-degree view
 OVERHEAD_GRID = ((0.05, 0.15, 0.25, 0.35, 0.45), (0.02, 0.10, 0.18))
 
@@ -137,7 +141,10 @@ class Commissioner:
         self.setup = setup
         self.settle_timeout = settle_timeout
         self.states: dict[str, Any] = {}
-        self.images: dict[str, list[Any]] = {}
+        # The newest frames of each camera, serialized: a free-running driver sends 30 a second
+        # and only one is wanted per look (deserialized then; stamps are read off the bytes).
+        self.images: dict[str, deque[tuple[float, bytes]]] = {}
+        self._Image = Image
         self.infos: dict[str, Any] = {}
         self.goal_pubs = {}
         self.requests = 0
@@ -153,13 +160,23 @@ class Commissioner:
                 JointState, topics.joint_states(stage), self._keep(self.states, stage), qos.STATE
             )
         for cid in ['overhead', *cameras]:
-            self.images[cid] = []
+            self.images[cid] = deque(maxlen=FRAMES_KEPT)
             image, info = topics_of.get(cid, (topics.image(cid), topics.camera_info(cid)))
             # Best effort, as camera drivers publish (a reliable subscription would never match).
-            self.node.create_subscription(Image, image, self.images[cid].append, qos.SENSOR)
+            self.node.create_subscription(
+                Image, image, self._keep_frame(self.images[cid]), qos.SENSOR, raw=True
+            )
             self.node.create_subscription(
                 CameraInfo, info, self._keep(self.infos, cid), qos.SENSOR
             )
+
+    @staticmethod
+    def _keep_frame(frames: deque[tuple[float, bytes]]) -> Callable[[bytes], None]:
+        def keep(data: bytes) -> None:
+            with contextlib.suppress(ValueError):
+                frames.append((cdr_header(data)[0], data))
+
+        return keep
 
     @staticmethod
     def _keep(store: dict[str, Any], key: str) -> Callable[[Any], None]:
@@ -218,7 +235,9 @@ class Commissioner:
         Raises:
             NodeDiedError: if no frame comes.
         """
-        from activesurv_common.ros.conversions import image_to_gray, sec_to_time, time_to_sec
+        from rclpy.serialization import deserialize_message
+
+        from activesurv_common.ros.conversions import image_to_gray, sec_to_time
 
         t = self.now() + 0.15
         msg = self._CaptureRequest()
@@ -231,11 +250,12 @@ class Commissioner:
         self._capture.publish(msg)
 
         def arrived() -> bool:
-            return any(time_to_sec(m.header.stamp) >= t - 1e-6 for m in self.images[camera_id])
+            return any(s >= t - 1e-6 for s, _ in self.images[camera_id])
 
         if not self.spin_until(arrived, 5.0):
             raise NodeDiedError(f'{camera_id} sent no frame for a capture request in 5 s')
-        frame = next(m for m in self.images[camera_id] if time_to_sec(m.header.stamp) >= t - 1e-6)
+        data = next(d for s, d in self.images[camera_id] if s >= t - 1e-6)
+        frame = deserialize_message(data, self._Image)
         return np.asarray(image_to_gray(frame), dtype=np.uint8)
 
     def camera_model(self, camera_id: str, fallback: CameraModel) -> CameraModel:

@@ -3,7 +3,7 @@ lines and parabolas, for the IMM predictor (the default) and the round-1 constan
 filter side by side; the cost of one update and a 10-point horizon; lockstep experiments of
 the fast system on manoeuvring paths with either predictor.
 
-Suite (:mod:`activesurv_bringup.experiments.prediction_suite`): per path kind 20 seeded paths,
+Suite (:mod:`activesurv_studies.prediction_suite`): per path kind 20 seeded paths,
 30 Hz fixes with 0.5 mm noise, predictions 1, 2 and 4 s ahead from every third fix after 2 s
 of tracking.
 Set ``ACTIVESURV_PREDICTION_RUNS`` to use fewer paths (a quick look).
@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiments.prediction_suite import evaluate_suite, nees_band
 from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
 from activesurv_prediction.predictor import make_predictor
 from activesurv_sim.paths import MANOEUVRES, SUITE_KINDS, manoeuvre_path, write_csv
+from activesurv_studies.prediction_suite import evaluate_suite, nees_band
 
 LEADS = (1.0, 2.0, 4.0)
 

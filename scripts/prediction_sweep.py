@@ -18,10 +18,10 @@ from multiprocessing import Pool
 from pathlib import Path
 from typing import Any
 
-from activesurv_bringup.experiments.prediction_suite import evaluate_suite
 from activesurv_prediction import imm
 from activesurv_prediction.base import Predictor
 from activesurv_prediction.predictor import TargetPredictor
+from activesurv_studies.prediction_suite import evaluate_suite
 
 VARIANTS: list[dict[str, Any]] = [
     {},

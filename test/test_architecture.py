@@ -41,6 +41,12 @@ ALLOWED: dict[str, set[str]] = {
         'activesurv_dispatch',
         'activesurv_stages',
     },
+    'activesurv_studies': {
+        'activesurv_common',
+        'activesurv_imaging',
+        'activesurv_prediction',
+        'activesurv_sim',
+    },
     'activesurv_bringup': set(PACKAGES),
 }
 OPENCV_USERS = {
@@ -48,6 +54,7 @@ OPENCV_USERS = {
     'activesurv_imaging',
     'activesurv_bringup',
     'activesurv_hardware',
+    'activesurv_studies',
 }
 ROS_TOP_LEVEL = ('rclpy', 'activesurv_interfaces', 'builtin_interfaces', 'rosgraph_msgs')
 NODE_LINE_LIMIT = 200

@@ -110,7 +110,9 @@ def test_an_experiment_runs_on_the_lab(tmp_path: Path, wait_for_file: Callable[.
     ok = [d for d in rows if d['status'] == 'ok']
     assert len(ok) >= 8, [(d['status'], d['reason']) for d in rows]
     errors = [d['position_error'] for d in rows if d['position_error'] is not None]
-    assert np.median(errors) < 0.3e-3  # measured ~0.07 mm (docs/hardware.md); loose for a busy machine
+    assert (
+        np.median(errors) < 0.3e-3
+    )  # measured ~0.07 mm (docs/hardware.md); loose for a busy machine
     offsets = [v for d in rows for v in d['frame_offsets'].values()]
     assert offsets
     assert all(abs(v) <= 1.25 / RATE + 1e-9 for v in offsets)

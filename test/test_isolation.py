@@ -7,10 +7,12 @@ import os
 import tempfile
 from pathlib import Path
 
+from activesurv_launch.domains import DOMAIN_IDS
+
 
 def test_session_has_its_own_ros_environment() -> None:
     domain = int(os.environ['ROS_DOMAIN_ID'])
-    assert 11 <= domain < 100
+    assert domain in DOMAIN_IDS  # never 0, the domain every ROS 2 tool uses
     assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     ros_home = Path(os.environ['ROS_HOME'])
     assert ros_home.is_dir()

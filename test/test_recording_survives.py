@@ -117,3 +117,50 @@ def test_reindex_errors_are_clear(tmp_path: Path) -> None:
     assert r.returncode == 1
     assert 'no complete message' in r.stderr
     assert 'Traceback' not in r.stderr
+
+
+@pytest.mark.graph
+def test_a_full_disk_stops_the_recorder_with_its_reason(
+    tmp_path: Path, rclpy_context: Any
+) -> None:
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    small = tmp_path / 'small'
+    small.mkdir()
+    mounted = subprocess.run(
+        ['mount', '-t', 'tmpfs', '-o', 'size=1m', 'tmpfs', str(small)], capture_output=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f'cannot mount a small tmpfs here: {mounted.stderr.decode().strip()}')
+    rec = subprocess.Popen(
+        [str(BIN / 'recorder'), '--ros-args', '-p', f'output:={small / "bag"}',
+         '-p', 'flush_period:=0.2', '-p', 'discovery_period:=0.2'],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    node = Node('filler')
+    pub = node.create_publisher(
+        String, '/filler', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    try:
+        deadline = time.monotonic() + 30.0
+        while pub.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, 'recorder never subscribed'
+            ex.spin_once(timeout_sec=0.05)
+        block = 'x' * 20_000  # 1 MB fills in about 50 messages
+        while rec.poll() is None and time.monotonic() < deadline + 30.0:
+            pub.publish(String(data=block))
+            ex.spin_once(timeout_sec=0.01)
+        out = rec.communicate(timeout=10)[0]
+    finally:
+        ex.remove_node(node)
+        node.destroy_node()
+        if rec.poll() is None:
+            rec.kill()
+        subprocess.run(['umount', '-l', str(small)], capture_output=True)
+    assert rec.returncode != 0
+    assert 'disk full' in out

@@ -61,3 +61,36 @@ def test_a_split_bag_refuses_an_existing_directory_and_a_zero_duration(tmp_path:
         SplitBagWriter(tmp_path / 'bag', 1.0)
     with pytest.raises(BagError):
         SplitBagWriter(tmp_path / 'other', 0.0)
+
+
+def test_keep_bags_deletes_the_oldest_files_and_the_rest_reads(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    w = SplitBagWriter(bag, max_duration=1.0, latched={'/plan'}, keep=2)
+    w.write_json('/activesurv/run_info', 0, {'mode': 'test'})
+    _string(w, '/plan', 0.05, 'plan 0')
+    for k in range(50):  # 5 s at 10 Hz: five files, the newest two kept
+        _string(w, '/chatter', 0.1 * k, f'm{k}')
+    w.close()
+    files = sorted(p.name for p in bag.glob('*.mcap'))
+    assert files == ['bag_3.mcap', 'bag_4.mcap']
+    assert w.removed == ['bag_0.mcap', 'bag_1.mcap', 'bag_2.mcap']
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['relative_file_paths'] == files
+    chatter = [m.msg.data for m in read_bag(bag, {'/chatter'})]
+    assert chatter == [f'm{k}' for k in range(30, 50)]
+    assert next(m.msg.data for m in read_bag(bag, {'/plan'})) == 'plan 0'  # latched: repeated
+
+
+def test_a_size_limit_splits_the_bag(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    w = SplitBagWriter(bag, max_duration=0.0, max_bytes=20_000)
+    w.write_json('/activesurv/run_info', 0, {'mode': 'test'})
+    for k in range(200):
+        _string(w, '/chatter', 0.01 * k, 'x' * 500)
+        if k % 20 == 19:
+            w.flush()  # the recorder flushes every 0.5 s; the size is checked then
+    w.close()
+    files = sorted(bag.glob('*.mcap'))
+    assert len(files) >= 3
+    chatter = list(read_bag(bag, {'/chatter'}))
+    assert len(chatter) == 200

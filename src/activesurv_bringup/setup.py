@@ -29,12 +29,6 @@ setup(
     entry_points={
         'console_scripts': [
             'activesurv = activesurv_bringup.cli:main',
-            'recorder = activesurv_recording.recorder_node:main',
-            'image_load = activesurv_recording.load_node:main',
-            'frames = activesurv_liveview.frames_node:main',
-            'live_view = activesurv_liveview.live_view_node:main',
-            'activesurv_sensor_model = '
-            'activesurv_bringup.experiments.sensor_model_experiment:main',
         ],
     },
 )

@@ -19,7 +19,8 @@ from types import ModuleType
 MOVED_TO = {
     'activesurv_launch': ('launcher', 'compose', 'container', 'netns'),
     'activesurv_recording': ('bagio', 'salvage', 'recorder_node', 'load_node'),
-    'activesurv_liveview': ('live', 'live_view_node', 'frames_node'),
+    'activesurv_liveview': ('live', 'live_view_node', 'frames_node', 'scene'),
+    'activesurv_studies': ('sensor_model_experiment', 'prediction_suite'),
     'activesurv_bringup.rig': ('rigs', 'board_views', 'commission', 'lab'),
     'activesurv_bringup.experiments': (
         'experiment',
@@ -30,9 +31,6 @@ MOVED_TO = {
         'evaluation',
         'report',
         'surveil',
-        'scene',
-        'sensor_model_experiment',
-        'prediction_suite',
         'replay',
     ),
 }

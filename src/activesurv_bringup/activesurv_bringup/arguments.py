@@ -112,6 +112,8 @@ def session(args: argparse.Namespace) -> None:
         demand_interval=args.demand_interval,
         demand_at=parse_demand_at(args.demand_at),
         max_bag_duration=args.max_bag_duration,
+        max_bag_size=args.max_bag_size,
+        keep_bags=args.keep_bags,
         system=args.system,
         seed=args.seed,
     )

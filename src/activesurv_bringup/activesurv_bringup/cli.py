@@ -164,6 +164,15 @@ def _build_parser() -> argparse.ArgumentParser:
     sv.add_argument(
         '--max-bag-duration', type=float, default=0.0, help='split the bag every S s (0: never)'
     )
+    sv.add_argument(
+        '--max-bag-size', type=float, default=0.0, help='split the bag every MB (0: never)'
+    )
+    sv.add_argument(
+        '--keep-bags',
+        type=int,
+        default=0,
+        help='keep only the newest N files of the split bag, deleting older ones (0: all)',
+    )
     sv.add_argument('--system', choices=SYSTEMS, default='fast', help='camera motion class')
     sv.add_argument(
         '--processes', choices=PROCESSES, default='containers', help='nodes per process'
@@ -718,6 +727,8 @@ def _dispatch(args: argparse.Namespace) -> None:
             demand_interval=args.demand_interval,
             demand_at=parse_demand_at(args.demand_at),
             max_bag_duration=args.max_bag_duration,
+            max_bag_size=args.max_bag_size,
+            keep_bags=args.keep_bags,
             system=args.system,
             seed=args.seed,
         )

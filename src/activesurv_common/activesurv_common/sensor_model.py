@@ -3,7 +3,7 @@
 The variances of the six measured quantities (x, y, z, n_x, n_y, n_z) depend, of the controllable
 parameters, only on the camera-to-target distance d and the bearing theta (the angle between the
 marker normal and the line of sight). Each variance is a response surface fitted by the
-two-factorial experiment (:mod:`activesurv_bringup.experiments.sensor_model_experiment`)::
+two-factorial experiment (:mod:`activesurv_studies.sensor_model_experiment`)::
 
     log(sigma^2) = c0 + c1 d + c2 theta + c3 d^2 + c4 d theta + c5 theta^2
                    + c6 log(theta + theta0),   theta0 = 3 deg

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import yaml
 
-from activesurv_bringup.experiments.sensor_model_experiment import fit_model, run_experiment
 from activesurv_common.camera_model import CameraModel, overhead_camera
 from activesurv_common.geometry import Transform, rot_x, rot_y
 from activesurv_common.mount import CameraMount, solve_rotation_centre
@@ -25,6 +24,7 @@ from activesurv_imaging.calibration import (
 )
 from activesurv_imaging.errors import CalibrationError, SensorModelError
 from activesurv_sim.render import Plate, Scene, SensorNoise, look_at, render
+from activesurv_studies.sensor_model_experiment import fit_model, run_experiment
 
 MOUNT = CameraMount(
     'cam1',

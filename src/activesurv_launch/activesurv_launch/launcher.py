@@ -236,9 +236,11 @@ class Launcher:
         """Raise if a required node died without being stopped on purpose."""
         for fqn, proc in self.processes.items():
             if proc.spec.required and not proc.alive() and not proc.stopped_on_purpose:
+                tail = proc.tail()
+                last = next((ln for ln in reversed(tail.splitlines()) if ln.strip()), '')
                 raise NodeDiedError(
-                    f'node {fqn} died with exit code {proc.returncode}; last log lines:\n'
-                    f'{proc.tail()}'
+                    f'node {fqn} died with exit code {proc.returncode}: {last.strip()}\n'
+                    f'last log lines:\n{tail}'
                 )
 
     def stop(self) -> dict[str, int | None]:

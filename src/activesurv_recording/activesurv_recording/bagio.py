@@ -134,14 +134,25 @@ class SplitBagWriter:
         BagError: as :func:`open_writer`.
     """
 
-    def __init__(self, path: Path, max_duration: float, latched: set[str] | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        max_duration: float,
+        latched: set[str] | None = None,
+        keep: int = 0,
+        max_bytes: int = 0,
+    ) -> None:
         if path.exists():
             raise BagError(f'bag {path} already exists; choose a new directory')
-        if not max_duration > 0.0:
+        if not (max_duration > 0.0 or max_bytes > 0):
             raise BagError(f'max bag duration must be > 0 s, got {max_duration}')
         path.mkdir(parents=True)
         self.path = path
-        self.max_ns = int(max_duration * 1e9)
+        self.max_ns = int(max_duration * 1e9) if max_duration > 0.0 else 2**62
+        self.keep = int(keep)  # newest files kept (0: all): retention for sessions of hours
+        self.max_bytes = int(max_bytes)  # a file is closed once it holds this many (0: never)
+        self.removed: list[str] = []
+        self._latest = 0
         self.latched = latched if latched is not None else set()
         self.ts = typestore()
         self.index = 0
@@ -181,6 +192,11 @@ class SplitBagWriter:
             f['path'] = name
         meta['relative_file_paths'] = [name]
         self.closed.append(meta)
+        while self.keep and len(self.closed) > self.keep:  # the oldest files go (asked for)
+            old = self.closed.pop(0)
+            for f in old['relative_file_paths']:
+                (self.path / f).unlink(missing_ok=True)
+                self.removed.append(f)
         write_merged_metadata(self.path, self.closed)
         self.index += 1
 
@@ -190,6 +206,7 @@ class SplitBagWriter:
 
     def write_raw(self, topic: str, msgtype: str, t_ns: int, data: bytes) -> None:
         self._topics.setdefault(topic, (msgtype, None))
+        self._latest = max(self._latest, t_ns)
         if self._start is None:
             self._start = t_ns
         elif t_ns - self._start >= self.max_ns:
@@ -206,6 +223,11 @@ class SplitBagWriter:
 
     def flush(self) -> None:
         self.current.flush()
+        if self.max_bytes and self._start is not None:
+            d = self._split_dir(self.index)
+            if sum(f.stat().st_size for f in d.glob('*.mcap')) >= self.max_bytes:
+                self._rotate()
+                self._open(self._latest)  # the next file starts with the latched messages
 
     def close(self) -> None:
         self._rotate()

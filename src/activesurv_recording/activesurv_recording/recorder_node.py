@@ -17,6 +17,8 @@ what is on disk."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import sys
 import threading
@@ -33,7 +35,7 @@ from std_msgs.msg import String
 
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.node import run_node
-from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.ros.parameters import declare
 from activesurv_common.timeseries import ClockEstimate
 from activesurv_recording.bagio import (
     RUN_INFO_TOPIC,
@@ -45,27 +47,9 @@ from activesurv_recording.bagio import (
     strip_namespace,
 )
 from activesurv_recording.errors import BagError
+from activesurv_recording.recorder_params import PARAMS
 
 STATUS_TOPIC = topics.RECORDER_STATUS
-
-
-PARAMS = (
-    Param('output', '', 'bag directory (must not exist)'),
-    Param('image_rate', 2.0, 'Hz per thinned topic; 0: all', minimum=0.0),
-    Param('exclude', ['/rosout', '/parameter_events'], 'topics not recorded'),
-    Param('strip_namespace', '', "a rig's namespace: /NS/x is recorded as /x"),
-    Param('discovery_period', 0.5, 's between topic discoveries', above=0.0),
-    Param('run_info', '{}', 'JSON stored in the bag'),
-    Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
-    Param(
-        'max_bag_duration', 0.0, 'split the bag into files of this many s (0: one)', minimum=0.0
-    ),
-    Param(
-        'thin_topics',
-        ['/overhead/image_raw', '/overhead/camera_info'],
-        'streams thinned to image_rate',
-    ),
-)
 
 
 class RecorderNode(Node):
@@ -77,9 +61,10 @@ class RecorderNode(Node):
         if not output:
             raise BagError('recorder needs the output parameter (a new bag directory)')
         split, self.latched = float(g('max_bag_duration').value), set[str]()
+        size_mb, keep = float(g('max_bag_size').value), int(g('keep_bags').value)
         self.bag: BagWriter | SplitBagWriter | None = (
-            SplitBagWriter(Path(output), split, self.latched)
-            if split
+            SplitBagWriter(Path(output), split, self.latched, keep, int(size_mb * 1e6))
+            if split or size_mb
             else open_writer(Path(output))
         )
         self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
@@ -115,8 +100,11 @@ class RecorderNode(Node):
 
     def _flush(self) -> None:
         with self._lock:
-            if self.bag is not None:
-                self.bag.flush()
+            try:
+                if self.bag is not None:
+                    self.bag.flush()
+            except OSError as exc:  # a full disk: close what can be closed, stop the run
+                self._give_up(exc)
             counts = dict(self.counts)
         # Orchestrators wait on this before stopping the graph (nothing left unrecorded).
         self._status_pub.publish(String(data=json.dumps(counts)))
@@ -178,6 +166,14 @@ class RecorderNode(Node):
         est = self.clock.now(time.monotonic()) if self.sim_time else None
         node_now = int(self.get_clock().now().nanoseconds)
         return node_now if est is None else max(round(est * 1e9), node_now)
+
+    def _give_up(self, exc: OSError) -> None:
+        reason = 'disk full' if exc.errno == errno.ENOSPC else f'cannot write the bag: {exc}'
+        self.get_logger().error(f'{reason}: closing the bag and stopping')
+        with contextlib.suppress(OSError, BagError):
+            self._close()
+        self.bag = None
+        raise SystemExit(f'recorder: {reason}')
 
     def close(self) -> None:
         with self._lock:

@@ -59,6 +59,8 @@ class SurveilOptions:
         demand_interval: s between an object's demands, from its entry.
         demand_at: x (m) of demand lines; if given, demands are their predicted crossings.
         max_bag_duration: split the bag into files of this many s (0: one file).
+        max_bag_size: split the bag into files of this many MB (0: no limit).
+        keep_bags: keep only the newest N files of the split bag (0: all).
         system: the cameras' motion class.
         seed: seeds the objects' paths and the image noise.
         path_kinds: the path kinds objects are drawn from.
@@ -71,6 +73,8 @@ class SurveilOptions:
     demand_interval: float = 2.0
     demand_at: tuple[float, ...] = ()
     max_bag_duration: float = 0.0
+    max_bag_size: float = 0.0
+    keep_bags: int = 0
     system: str = 'fast'
     seed: int = 1
     path_kinds: tuple[str, ...] = PATH_KINDS
@@ -87,6 +91,12 @@ class SurveilOptions:
                 raise ConfigError(f'--{name.replace("_", "-")} must be > 0 s, got {v}')
         if not (math.isfinite(self.max_bag_duration) and self.max_bag_duration >= 0.0):
             raise ConfigError(f'--max-bag-duration must be >= 0 s, got {self.max_bag_duration}')
+        if not (math.isfinite(self.max_bag_size) and self.max_bag_size >= 0.0):
+            raise ConfigError(f'--max-bag-size must be >= 0 MB, got {self.max_bag_size}')
+        if self.keep_bags < 0:
+            raise ConfigError(f'--keep-bags must be >= 0, got {self.keep_bags}')
+        if self.keep_bags and not (self.max_bag_duration or self.max_bag_size):
+            raise ConfigError('--keep-bags needs --max-bag-duration or --max-bag-size')
         x0, x1 = 0.0, 0.5
         for x in self.demand_at:
             if not (math.isfinite(x) and x0 <= x <= x1):
@@ -155,7 +165,12 @@ def surveil_specs(
     for spec in specs:
         p = dict(spec.parameters)
         if spec.name == 'recorder':
-            p.update(run_info=json.dumps(info), max_bag_duration=float(s.max_bag_duration))
+            p.update(
+                run_info=json.dumps(info),
+                max_bag_duration=float(s.max_bag_duration),
+                max_bag_size=float(s.max_bag_size),
+                keep_bags=int(s.keep_bags),
+            )
         elif spec.name == 'predictor':
             p.pop('demand_times', None)
             p.update(
@@ -214,7 +229,12 @@ def hardware_surveil_specs(
             old = json.loads(p['run_info'])
             keep = ('hardware', 'rig', 'namespace', 'time_origin', 'truth', 'setup')
             info.update({k: old[k] for k in keep if k in old})
-            p.update(run_info=json.dumps(info), max_bag_duration=float(s.max_bag_duration))
+            p.update(
+                run_info=json.dumps(info),
+                max_bag_duration=float(s.max_bag_duration),
+                max_bag_size=float(s.max_bag_size),
+                keep_bags=int(s.keep_bags),
+            )
         elif spec.name == 'predictor':
             p.pop('demand_times', None)
             p.update(

@@ -1,0 +1,25 @@
+from setuptools import find_packages, setup
+
+package_name = 'activesurv_studies'
+
+setup(
+    name=package_name,
+    version='0.9.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={package_name: ['py.typed']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='activesurv developers',
+    maintainer_email='dev@activesurv.invalid',
+    description='Offline studies: the sensor-model experiment and the prediction suite.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'activesurv_sensor_model = activesurv_studies.sensor_model_experiment:main',
+        ],
+    },
+)

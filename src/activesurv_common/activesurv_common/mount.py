@@ -118,6 +118,22 @@ class CameraMount:
             return self.camera_pose(0.0, float(v[0]))
         return self.camera_pose(float(v[0]), float(v[1]))
 
+    def poses_from_joints(self, q: ArrayLike) -> tuple[Array, Array]:
+        """:meth:`pose_from_joints` for many joint vectors at once (the dispatcher scores
+        thousands of candidate poses): camera centres (N, 3) and rotations ``R_world_camera``
+        (N, 3, 3) for ``q`` (N, J). The same rule; ``test_mount`` holds the two together.
+        """
+        v = np.atleast_2d(np.asarray(q, dtype=np.float64))
+        lin = v[:, 0] if self.linear_axis is not None else np.zeros(len(v))
+        yaw = v[:, -1] + self.yaw_offset
+        c, s = np.cos(yaw), np.sin(yaw)
+        Rz = np.zeros((len(v), 3, 3))
+        Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
+        axis = self.linear_axis if self.linear_axis is not None else np.zeros(3)
+        centres = self.base[None, :] + lin[:, None] * axis[None, :] + Rz @ self.offset
+        rotations = np.asarray(Rz @ self.R_platform_camera, dtype=np.float64)
+        return np.asarray(centres, dtype=np.float64), rotations
+
     def camera_pose_from_joints(
         self, names: Sequence[str], positions: Sequence[float]
     ) -> Transform:

@@ -57,17 +57,9 @@ class Candidate:
 
 
 def camera_frames(sensor: Sensor, q: Array) -> tuple[Array, Array]:
-    """Camera centres (N, 3) and rotations (N, 3, 3) for joint vectors ``q`` (N, J)."""
-    m = sensor.mount
-    q = np.atleast_2d(q)
-    lin = q[:, 0] if m.linear_axis is not None else np.zeros(len(q))
-    yaw = q[:, -1] + m.yaw_offset
-    c, s = np.cos(yaw), np.sin(yaw)
-    Rz = np.zeros((len(q), 3, 3))
-    Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
-    axis = m.linear_axis if m.linear_axis is not None else np.zeros(3)
-    centres = m.base[None, :] + lin[:, None] * axis[None, :] + Rz @ m.offset
-    return centres, Rz @ m.R_platform_camera
+    """Camera centres (N, 3) and rotations (N, 3, 3) for joint vectors ``q`` (N, J): the
+    mount's one kinematics, batched (:meth:`CameraMount.poses_from_joints`)."""
+    return sensor.mount.poses_from_joints(q)
 
 
 def view_batch(

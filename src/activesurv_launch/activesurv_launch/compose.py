@@ -87,8 +87,18 @@ class Composition:
             self._thread = threading.Thread(target=self.executor.spin, daemon=True)
             self._thread.start()
 
+    def run(self, specs: Sequence[NodeSpec]) -> None:
+        """Start ``specs``: :class:`~activesurv_launch.runner.NodeRunner`."""
+        self.add(specs)
+
     def check(self) -> None:
         """Composed nodes cannot die alone: a crash takes the process (nothing to check)."""
+
+    def cpu_seconds(self) -> dict[str, float]:
+        return {}  # one process: the orchestrator's own, counted by it
+
+    def rss_bytes(self) -> dict[str, int]:
+        return {}
 
     def stop(self) -> None:
         import time

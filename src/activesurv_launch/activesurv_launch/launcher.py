@@ -225,6 +225,12 @@ class Launcher:
         for spec in self.specs:
             self.start_node(spec)
 
+    def run(self, specs: Sequence[NodeSpec]) -> None:
+        """Start ``specs`` not started yet (:class:`~activesurv_launch.runner.NodeRunner`)."""
+        for spec in specs:
+            if spec.fqn not in self.processes:
+                self.start_node(spec)
+
     def start_node(self, spec: NodeSpec) -> NodeProcess:
         if spec.host and spec.host not in self.hosts:
             raise NodeDiedError(f'node {spec.fqn}: unknown host {spec.host!r}')

@@ -27,9 +27,9 @@ from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill, imager
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_launch.launcher import Launcher, NodeSpec, container
+from activesurv_launch.runner import NodeRunner
 
 if TYPE_CHECKING:
-    from activesurv_launch.compose import Composition
     from activesurv_launch.netns import NetnsHosts
 from activesurv_common.calibration import pose_to_list
 
@@ -518,7 +518,7 @@ def _run(
         opts.time_origin,
         opts.namespace,
     )
-    launcher: Launcher | Composition
+    launcher: NodeRunner
     if opts.compose:
         from activesurv_launch.compose import Composition
 
@@ -531,10 +531,7 @@ def _run(
         )
         launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
     try:
-        if isinstance(launcher, Launcher):
-            launcher.start()
-        else:
-            launcher.add(specs[:-1])
+        launcher.run(specs[:-1])
         deadline = time.monotonic() + startup_timeout
         while monitor.missing_nodes():
             launcher.check()
@@ -552,19 +549,17 @@ def _run(
             f'{n_nodes} nodes up in {len(specs) - 1} processes; starting the xy table and '
             'simulated time'
         )
-        if isinstance(launcher, Launcher):
-            launcher.start_node(specs[-1])
-        else:
-            launcher.add(specs[-1:])
+        launcher.run(specs[-1:])
         cpu0, wall0 = _cpu(launcher), time.monotonic()
         wall_limit = time.monotonic() + until.wall_limit
         samples: list[dict[str, Any]] = []
         next_sample = wall0
         while not until.done(monitor):
-            if time.monotonic() >= next_sample and isinstance(launcher, Launcher):
+            if time.monotonic() >= next_sample and not opts.compose:
                 next_sample += RESOURCE_PERIOD
                 samples.append(_resources(launcher, wall0, monitor.sim_time))
-            if isinstance(launcher, Launcher):
+            if kills:  # RunOptions refuses kills with compose: these are processes
+                assert isinstance(launcher, Launcher)
                 _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
             launcher.check()
             monitor.spin(0.25)
@@ -599,7 +594,7 @@ def _run(
 RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU
 
 
-def _resources(launcher: Launcher, wall0: float, sim_time: float) -> dict[str, Any]:
+def _resources(launcher: NodeRunner, wall0: float, sim_time: float) -> dict[str, Any]:
     """One sample of ``resources.json``: wall and simulated time, RSS (MB) and CPU (s)."""
     return {
         'wall': round(time.monotonic() - wall0, 2),
@@ -609,13 +604,10 @@ def _resources(launcher: Launcher, wall0: float, sim_time: float) -> dict[str, A
     }
 
 
-def _cpu(launcher: Launcher | Composition) -> dict[str, float]:
+def _cpu(launcher: NodeRunner) -> dict[str, float]:
     """CPU seconds so far of each node process, and of this (orchestrating) process."""
     own = os.times()
-    out = {'orchestrator': own.user + own.system}
-    if isinstance(launcher, Launcher):
-        out.update(launcher.cpu_seconds())
-    return out
+    return {'orchestrator': own.user + own.system, **launcher.cpu_seconds()}
 
 
 def _write_cpu(path: Path, before: dict[str, float], after: dict[str, float], wall: float) -> None:

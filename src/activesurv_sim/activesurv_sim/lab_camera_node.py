@@ -94,8 +94,10 @@ class LabCameraNode(Node):
                 JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
             )
         steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.rate, self.exposures, self.started = rate, 0, time.monotonic()
         self.create_timer(1.0 / rate, self._expose, clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
+        self.create_timer(10.0, self._say_rate, clock=steady)
 
     def _on_object(self, msg: ObjectState) -> None:
         self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg))
@@ -117,6 +119,7 @@ class LabCameraNode(Node):
 
     def _expose(self) -> None:
         """An exposure now; its frame is made once the controllers have reported past it."""
+        self.exposures += 1
         self.pending.append(self.get_clock().now().nanoseconds * 1e-9)
         self._develop()
 
@@ -150,6 +153,16 @@ class LabCameraNode(Node):
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
         self.frames += 1
+
+    def _say_rate(self) -> None:
+        """What the camera achieves on this machine (a busy one exposes less often)."""
+        hz = self.exposures / max(time.monotonic() - self.started, 1e-9)
+        ms = 1e3 * self.render_s / max(self.frames + self.dropped, 1)
+        slow = ' (slower than asked: the machine cannot keep up)' if hz < 0.9 * self.rate else ''
+        self.get_logger().info(
+            f'{hz:.1f} Hz of {self.rate:g} Hz{slow}; {self.frames} frames sent, '
+            f'{self.dropped} dropped, {self.missed} without state; render {ms:.1f} ms'
+        )
 
     def _publish_diagnostics(self) -> None:
         ms = 1e3 * self.render_s / max(self.frames + self.dropped, 1)

@@ -419,7 +419,8 @@ def experiment_until(exp: Experiment, rtf: float) -> Until:
         if len(mon.estimates) == shown[0]:
             return None
         shown[0] = len(mon.estimates)
-        return f'demand {shown[0]} of {m} answered, simulated time {mon.sim_time:.1f} s'
+        clock = 'run' if mon.time_origin is not None else 'simulated'
+        return f'demand {shown[0]} of {m} answered, {clock} time {mon.sim_time:.1f} s'
 
     return Until(
         lambda mon: len(mon.estimates) >= m or mon.sim_time >= end_sim,
@@ -545,10 +546,8 @@ def _run(
         if before_start is not None:
             before_start(monitor, progress)
         n_nodes = sum(len(s.members) or 1 for s in specs)
-        progress(
-            f'{n_nodes} nodes up in {len(specs) - 1} processes; starting the xy table and '
-            'simulated time'
-        )
+        last = 'the xy table and simulated time' if opts.time_origin is None else specs[-1].name
+        progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
         launcher.run(specs[-1:])
         cpu0, wall0 = _cpu(launcher), time.monotonic()
         wall_limit = time.monotonic() + until.wall_limit

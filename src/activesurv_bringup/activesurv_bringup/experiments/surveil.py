@@ -295,7 +295,7 @@ def run_surveil(
         def done(mon: Any) -> bool:
             if stop.requested:
                 progress(
-                    f'signal received at simulated time {mon.sim_time:.1f} s: stopping (open '
+                    f'signal received at {clock(mon)} time {mon.sim_time:.1f} s: stopping (open '
                     'demands are answered, the bag is closed)'
                 )
                 return True
@@ -308,7 +308,7 @@ def run_surveil(
             ok = sum(1 for e in mon.estimates.values() if int(e.status) == 0)
             end = f' of {s.duration:.0f} s' if s.duration else ''
             return (
-                f'simulated time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
+                f'{clock(mon)} time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
                 f'answered, {ok} ok'
             )
 
@@ -324,6 +324,11 @@ def run_surveil(
     doc = evaluate_surveil(bag)
     (out_dir / 'results.json').write_text(json.dumps(doc, indent=2) + '\n')
     return doc
+
+
+def clock(monitor: Any) -> str:
+    """What a session's progress calls its time: simulated, or a hardware run's wall time."""
+    return 'run' if getattr(monitor, 'time_origin', None) is not None else 'simulated'
 
 
 def evaluate_surveil(bag: Path) -> dict[str, Any]:

@@ -208,6 +208,16 @@ def lab_specs(
     ]
 
 
+def camera_rates(logs: Path) -> list[str]:
+    """The rate each lab camera achieved, from the last report in its log."""
+    out = []
+    for log in sorted(logs.glob('*_camera.log')):
+        said = [ln for ln in log.read_text(errors='replace').splitlines() if ' Hz of ' in ln]
+        if said:
+            out.append(f'{log.stem.removesuffix("_camera")}: {said[-1].split("]: ")[-1]}')
+    return out
+
+
 def run_lab(
     rig_file: Path,
     out: Path,
@@ -261,5 +271,7 @@ def run_lab(
         for e in emulators:
             e.close()
         time.sleep(0.1)
+        for line in camera_rates(out / 'logs'):
+            progress(line)
         progress('lab stopped')
     return hw_file

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from activesurv_common.ros import qos
-from activesurv_recording.bagio import playback_qos, recording_qos
+from activesurv_recording.conversions import playback_qos, recording_qos
 
 
 def _pub(profile: QoSProfile) -> SimpleNamespace:

@@ -24,7 +24,8 @@ from activesurv_common.ros import qos
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_liveview.live import DEFAULT_TOPICS, LatchedCache, LiveFilter
-from activesurv_recording.bagio import cdr_header, message_class, recording_qos, typestore
+from activesurv_recording.bagio import cdr_header, typestore
+from activesurv_recording.conversions import message_class, recording_qos
 
 PARAMS = (
     Param('port', 8765, 'WebSocket port', minimum=1),

@@ -8,11 +8,10 @@ Reading uses the definitions stored in the bag itself, so a bag from another ver
 
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import struct
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,12 +25,6 @@ from activesurv_common.ros import topics
 from activesurv_recording.errors import BagError
 
 RUN_INFO_TOPIC = topics.RUN_INFO
-
-
-def message_class(type_name: str) -> Any:
-    """The Python class of ``pkg/msg/Name`` (the message package must be importable)."""
-    pkg, kind, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
 
 
 def interface_dir() -> Path:
@@ -370,85 +363,8 @@ def offered_qos(path: Path) -> dict[str, list[Any]]:
         raise BagError(f'bag {path} is unreadable or damaged: {exc}') from exc
 
 
-def playback_qos(recorded: Sequence[Any], fallback: Any) -> Any:
-    """The QoS to publish a recorded topic with, as ``ros2 bag play`` chooses it: reliable and
-    transient local only if every recorded publisher was, as deep as the deepest one."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
-        QosDurability,
-        QosReliability,
-    )
-
-    if not recorded:
-        return fallback
-    reliable = all(q.reliability == QosReliability.RELIABLE for q in recorded)
-    latched = all(q.durability == QosDurability.TRANSIENT_LOCAL for q in recorded)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=max(1, *(int(q.depth) for q in recorded)),
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-    )
-
-
 def run_info(path: Path) -> dict[str, Any]:
     """The run description the orchestrator stored in the bag."""
     for m in read_bag(path, {RUN_INFO_TOPIC}):
         return dict(json.loads(m.msg.data))
     raise BagError(f'bag {path} has no {RUN_INFO_TOPIC} message (not an activesurv run?)')
-
-
-def recording_qos(publishers: Sequence[Any], depth: int | None = None) -> tuple[Any, list[Any]]:
-    """How to subscribe to a topic with these publishers (rclpy ``TopicEndpointInfo``), and the
-    QoS profiles they offer, for the bag's metadata (what ``ros2 bag play`` offers again).
-
-    The subscription is reliable only if they all are, transient local only if they all are
-    (so latched blackboard topics arrive too), and deep enough for their history. Discovery
-    does not tell a publisher's depth (it reports 0); ``depth`` (the graph's contract, see
-    ``activesurv_common.ros.qos.PUBLISHED``) fills it in, else 10, the rclpy default.
-    """
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-
-    reliable = bool(publishers) and all(
-        i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in publishers
-    )
-    latched = bool(publishers) and all(
-        i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in publishers
-    )
-    profile = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=max([200, *(int(i.qos_profile.depth) for i in publishers)]),
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-    )
-    zero = QosTime(0, 0)
-    offered = []
-    for i in publishers:
-        q = i.qos_profile
-        keep_all = q.history == HistoryPolicy.KEEP_ALL
-        offered.append(
-            Qos(
-                QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
-                int(q.depth) or depth or 10,
-                QosReliability.RELIABLE
-                if q.reliability == ReliabilityPolicy.RELIABLE
-                else QosReliability.BEST_EFFORT,
-                QosDurability.TRANSIENT_LOCAL
-                if q.durability == DurabilityPolicy.TRANSIENT_LOCAL
-                else QosDurability.VOLATILE,
-                zero,
-                zero,
-                QosLiveliness.AUTOMATIC,
-                zero,
-                False,
-            )
-        )
-    return profile, offered

@@ -41,11 +41,10 @@ from activesurv_recording.bagio import (
     RUN_INFO_TOPIC,
     BagWriter,
     SplitBagWriter,
-    message_class,
     open_writer,
-    recording_qos,
     strip_namespace,
 )
+from activesurv_recording.conversions import message_class, recording_qos
 from activesurv_recording.errors import BagError
 from activesurv_recording.recorder_params import PARAMS
 

@@ -101,7 +101,6 @@ def graph_specs(
         return {'camera_info_file': f'{files["calibration"]}/{camera_id}.yaml'} if files else {}
 
     by_cam = {f.camera: f for f in faults}
-    pc, dc = cfg['predictor'], cfg['dispatch']
     specs = [
         NodeSpec(
             'recorder',
@@ -133,60 +132,8 @@ def graph_specs(
                 'seed': exp.seed * 100 + 99,
             },
         ),
-        NodeSpec(
-            'overhead_locator',
-            'activesurv_imaging.overhead_locator_node',
-            parameters={
-                **sim,
-                'camera_pose': over,
-                'marker_height': float(obj['top_height']),
-                'marker_radius': exp.setup.marker_radius,
-            },
-        ),
-        NodeSpec(
-            'predictor',
-            'activesurv_prediction.predictor_node',
-            parameters={
-                **sim,
-                'marker_height': float(obj['top_height']),
-                'demand_times': [float(t) for t in exp.demand_times],
-                'horizon': int(pc['horizon']),
-                'measurement_std': float(pc['measurement_std']),
-                'jerk_std': float(pc['jerk_std']),
-                'model': str(pc.get('model', 'imm')),
-                'confirm_fixes': int(pc['confirm_fixes']),
-                'side_marker_offset': [float(v) for v in obj['side_offset']],
-                'side_marker_normal': [float(v) for v in obj['side_normal']],
-            },
-        ),
-        NodeSpec(
-            'dispatcher',
-            'activesurv_dispatch.dispatcher_node',
-            parameters={
-                **sim,
-                'motion_class': exp.system,
-                **believed,
-                'k': int(cfg['k']),
-                'rho': float(dc['rho']),
-                'capture_lead': float(dc['capture_lead']),
-                'settle_time': float(dc['settle_time']),
-            },
-        ),
-        NodeSpec(
-            'frames',
-            'activesurv_liveview.frames_node',
-            parameters={**sim, 'motion_class': exp.system, 'overhead_pose': over, **believed},
-        ),
-        NodeSpec(
-            'fusion',
-            'activesurv_fusion.fusion_node',
-            parameters={
-                **sim,
-                'collect_timeout': float(cfg['fusion']['collect_timeout']),
-                'z_sigma': float(cfg['fusion']['z_sigma']),
-                'journal': str(bag.parent / 'logs' / 'fusion.journal'),
-            },
-        ),
+        locator_spec(exp, sim, over, exp.setup.marker_radius),
+        *core_specs(exp, sim, believed, over, exp.demand_times, bag.parent / 'logs'),
     ]
     for i, s in enumerate(exp.setup.sensors):
         cid = s.camera_id
@@ -256,6 +203,87 @@ def graph_specs(
     host = 'core' if split_hosts else ''
     specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
     return specs
+
+
+def locator_spec(
+    exp: Experiment,
+    clock: dict[str, Any],
+    over: list[float],
+    marker_radius: float,
+    remappings: dict[str, str] | None = None,
+) -> NodeSpec:
+    """The overhead locator: top-marker fixes from the overhead camera's frames."""
+    return NodeSpec(
+        'overhead_locator',
+        'activesurv_imaging.overhead_locator_node',
+        parameters={
+            **clock,
+            'camera_pose': over,
+            'marker_height': float(exp.config['object']['top_height']),
+            'marker_radius': marker_radius,
+        },
+        remappings=remappings or {},
+    )
+
+
+def core_specs(
+    exp: Experiment,
+    clock: dict[str, Any],
+    believed: dict[str, str],
+    over: list[float],
+    demand_times: Sequence[float],
+    logs: Path,
+) -> list[NodeSpec]:
+    """Predictor, dispatcher, frames and fusion: the same in simulated and hardware runs but
+    for their ``clock`` (``use_sim_time``), the believed set-up and the demand instants."""
+    cfg, obj = exp.config, exp.config['object']
+    pc, dc = cfg['predictor'], cfg['dispatch']
+    return [
+        NodeSpec(
+            'predictor',
+            'activesurv_prediction.predictor_node',
+            parameters={
+                **clock,
+                'marker_height': float(obj['top_height']),
+                'demand_times': [float(t) for t in demand_times],
+                'horizon': int(pc['horizon']),
+                'measurement_std': float(pc['measurement_std']),
+                'jerk_std': float(pc['jerk_std']),
+                'model': str(pc.get('model', 'imm')),
+                'confirm_fixes': int(pc['confirm_fixes']),
+                'side_marker_offset': [float(v) for v in obj['side_offset']],
+                'side_marker_normal': [float(v) for v in obj['side_normal']],
+            },
+        ),
+        NodeSpec(
+            'dispatcher',
+            'activesurv_dispatch.dispatcher_node',
+            parameters={
+                **clock,
+                'motion_class': exp.system,
+                **believed,
+                'k': int(cfg['k']),
+                'rho': float(dc['rho']),
+                'capture_lead': float(dc['capture_lead']),
+                'settle_time': float(dc['settle_time']),
+            },
+        ),
+        NodeSpec(
+            'frames',
+            'activesurv_liveview.frames_node',
+            parameters={**clock, 'motion_class': exp.system, 'overhead_pose': over, **believed},
+        ),
+        NodeSpec(
+            'fusion',
+            'activesurv_fusion.fusion_node',
+            parameters={
+                **clock,
+                'collect_timeout': float(cfg['fusion']['collect_timeout']),
+                'z_sigma': float(cfg['fusion']['z_sigma']),
+                'journal': str(logs / 'fusion.journal'),
+            },
+        ),
+    ]
 
 
 CAMERA_MODULES = (

@@ -29,7 +29,13 @@ import yaml
 
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
-from activesurv_bringup.experiments.graph import Progress, run_graph, run_info
+from activesurv_bringup.experiments.graph import (
+    Progress,
+    core_specs,
+    locator_spec,
+    run_graph,
+    run_info,
+)
 from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
 from activesurv_common.calibration import pose_to_list
@@ -81,11 +87,9 @@ def hardware_specs(
     motion_correction: bool = True,
 ) -> list[NodeSpec]:
     """Every node of a run on the rig ``hw``, in start order (the table runner last)."""
-    cfg, obj = exp.config, exp.config['object']
     wall: dict[str, Any] = {'use_sim_time': False}
     files = hardware_files(exp, hw, bag.parent)
     over = pose_to_list(exp.overhead(truth=False)[1])
-    pc, dc = cfg['predictor'], cfg['dispatch']
     info = run_info(exp)
     info.update(
         mode='hardware',
@@ -121,70 +125,10 @@ def hardware_specs(
     ]
     sources, remap = source_specs(hw.overhead, files['calibration'])
     specs += sources
-    specs.append(
-        NodeSpec(
-            'overhead_locator',
-            'activesurv_imaging.overhead_locator_node',
-            parameters={
-                **wall,
-                'camera_pose': over,
-                'marker_height': float(obj['top_height']),
-                'marker_radius': hw.geometry.top_marker_radius,
-            },
-            remappings=remap,
-        )
-    )
-    specs += [
-        NodeSpec(
-            'predictor',
-            'activesurv_prediction.predictor_node',
-            parameters={
-                **wall,
-                'marker_height': float(obj['top_height']),
-                'demand_times': [origin + float(t) for t in exp.demand_times],
-                'horizon': int(pc['horizon']),
-                'measurement_std': float(pc['measurement_std']),
-                'jerk_std': float(pc['jerk_std']),
-                'model': str(pc.get('model', 'imm')),
-                'confirm_fixes': int(pc['confirm_fixes']),
-                'side_marker_offset': [float(v) for v in obj['side_offset']],
-                'side_marker_normal': [float(v) for v in obj['side_normal']],
-            },
-        ),
-        NodeSpec(
-            'dispatcher',
-            'activesurv_dispatch.dispatcher_node',
-            parameters={
-                **wall,
-                'motion_class': exp.system,
-                'setup_file': files['setup_file'],
-                'k': int(cfg['k']),
-                'rho': float(dc['rho']),
-                'capture_lead': float(dc['capture_lead']),
-                'settle_time': float(dc['settle_time']),
-            },
-        ),
-        NodeSpec(
-            'frames',
-            'activesurv_liveview.frames_node',
-            parameters={
-                **wall,
-                'motion_class': exp.system,
-                'overhead_pose': over,
-                'setup_file': files['setup_file'],
-            },
-        ),
-        NodeSpec(
-            'fusion',
-            'activesurv_fusion.fusion_node',
-            parameters={
-                **wall,
-                'collect_timeout': float(cfg['fusion']['collect_timeout']),
-                'z_sigma': float(cfg['fusion']['z_sigma']),
-                'journal': str(bag.parent / 'logs' / 'fusion.journal'),
-            },
-        ),
-    ]
+    specs.append(locator_spec(exp, wall, over, hw.geometry.top_marker_radius, remap))
+    believed = {'setup_file': files['setup_file']}
+    times = [origin + float(t) for t in exp.demand_times]
+    specs += core_specs(exp, wall, believed, over, times, bag.parent / 'logs')
     for s in exp.setup.sensors:
         cid = s.camera_id
         cam = hw.cameras[cid]

@@ -25,12 +25,11 @@ from activesurv_bringup.specs import live_view_spec, mount_parameters
 from activesurv_dispatch.sensors import load_setup, setup_from_dict
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_recording.bagio import (
-    message_class,
     offered_qos,
-    playback_qos,
     read_bag,
     run_info,
 )
+from activesurv_recording.conversions import message_class, playback_qos
 
 Progress = Callable[[str], None]
 

@@ -160,11 +160,34 @@ def surveil_specs(
     specs = graph_specs(
         exp, bag, opts.rtf, opts.image_rate, opts.faults, opts.thin, preview_rate=opts.preview_rate
     )
+    return continuous(specs, exp, s)
+
+
+def hardware_surveil_specs(
+    exp: Experiment, hw: Hardware, bag: Path, s: SurveilOptions, opts: RunOptions, home: bool
+) -> list[NodeSpec]:
+    """A session on a real rig: the hardware graph, continuous, the table running the stream."""
+    assert opts.time_origin is not None
+    specs = hardware_specs(exp, hw, bag, opts.time_origin, opts.image_rate, home)
+    return continuous(specs, exp, s)
+
+
+# What a hardware run's recorder stores beside the session's description.
+HARDWARE_INFO = ('hardware', 'rig', 'namespace', 'time_origin', 'truth', 'setup')
+TABLES = ('xy_table', 'table_runner')  # the simulated table, or the real table's runner
+
+
+def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> list[NodeSpec]:
+    """A run's node specs turned into a session's: the session's run description and bag
+    retention, per-object demands, the table running the object stream, no fusion journal."""
     info = surveil_info(exp, s)
     out = []
     for spec in specs:
         p = dict(spec.parameters)
         if spec.name == 'recorder':
+            old = json.loads(p['run_info'])
+            if old.get('mode') == 'hardware':
+                info.update({k: old[k] for k in HARDWARE_INFO if k in old})
             p.update(
                 run_info=json.dumps(info),
                 max_bag_duration=float(s.max_bag_duration),
@@ -179,7 +202,7 @@ def surveil_specs(
                 demand_lines=[float(x) for x in s.demand_at] or [0.25],
                 demand_region=[float(v) for v in DEMAND_REGION],
             )
-        elif spec.name == 'xy_table':
+        elif spec.name in TABLES:
             p.update(
                 path_type='stream',
                 stream_seed=int(s.seed),
@@ -213,48 +236,6 @@ class _Stop:
     def __exit__(self, *exc: object) -> None:
         for sig, handler in self._old.items():
             signal.signal(sig, handler)
-
-
-def hardware_surveil_specs(
-    exp: Experiment, hw: Hardware, bag: Path, s: SurveilOptions, opts: RunOptions, home: bool
-) -> list[NodeSpec]:
-    """A session on a real rig: the hardware graph, continuous, the table running the stream."""
-    assert opts.time_origin is not None
-    specs = hardware_specs(exp, hw, bag, opts.time_origin, opts.image_rate, home)
-    info = surveil_info(exp, s)
-    out = []
-    for spec in specs:
-        p = dict(spec.parameters)
-        if spec.name == 'recorder':
-            old = json.loads(p['run_info'])
-            keep = ('hardware', 'rig', 'namespace', 'time_origin', 'truth', 'setup')
-            info.update({k: old[k] for k in keep if k in old})
-            p.update(
-                run_info=json.dumps(info),
-                max_bag_duration=float(s.max_bag_duration),
-                max_bag_size=float(s.max_bag_size),
-                keep_bags=int(s.keep_bags),
-            )
-        elif spec.name == 'predictor':
-            p.pop('demand_times', None)
-            p.update(
-                demand_mode='lines' if s.demand_at else 'interval',
-                demand_interval=float(s.demand_interval),
-                demand_lines=[float(x) for x in s.demand_at] or [0.25],
-                demand_region=[float(v) for v in DEMAND_REGION],
-            )
-        elif spec.name == 'table_runner':
-            p.update(
-                path_type='stream',
-                stream_seed=int(s.seed),
-                arrival_interval=float(s.arrival_interval),
-                path_kinds=list(s.path_kinds),
-                start_time=FIRST_ENTRY,
-            )
-        elif spec.name == 'fusion':
-            p.pop('journal', None)
-        out.append(replace(spec, parameters=p))
-    return out
 
 
 def run_surveil(

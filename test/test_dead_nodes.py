@@ -18,16 +18,19 @@ import pytest
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SERVICE_INTERVAL = 1.0  # s between demand instants (experiments.yaml)
+# When the killed stage is restarted: early enough that it has rejoined before the run ends on
+# a busy machine (at 8.2 s a clean-clone run once ended with cam4 still starting).
+STAGE_BACK = 7.6
 
 
 @pytest.mark.graph
 @pytest.mark.slow
 def test_killed_nodes_are_noticed_and_rejoin(tmp_path: Path) -> None:
     out = tmp_path / 'run'
-    kills = ['cam1_imager@3.2:5.7', 'cam4_stage@6.2:8.2', 'fusion@8.6:9.4']
+    kills = ['cam1_imager@3.2:5.7', f'cam4_stage@6.2:{STAGE_BACK}', 'fusion@8.6:9.4']
     cmd = [ACTIVESURV, 'experiment', '--set', 'A', '--system', 'fast', '--out', str(out)]
     # Half real time: a killed node's process takes 2-4 s of wall time to start again, and at
-    # rtf 1 the run may end before the restarted stage (8.2 s) has rejoined.
+    # rtf 1 the run may end before the restarted stage has rejoined.
     cmd += ['--seed', '3', '--rtf', '0.5']
     for k in kills:
         cmd += ['--kill', k]
@@ -79,7 +82,7 @@ def test_killed_nodes_are_noticed_and_rejoin(tmp_path: Path) -> None:
         t = d['t']
         if t_lost + 0.3 < t < 5.7:
             assert 'cam1' not in d['assigned'], d
-        if t_stage_lost + 0.3 < t < 8.2:
+        if t_stage_lost + 0.3 < t < STAGE_BACK:
             assert 'cam4' not in d['assigned'], d
     # The demands around the fusion restart are answered by the new fusion node.
     around = [d for d in demands if 8.0 <= d['t'] <= 10.0]

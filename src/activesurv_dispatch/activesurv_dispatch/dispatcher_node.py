@@ -25,7 +25,7 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.ros import diagnostics, qos, topics
-from activesurv_common.ros.conversions import joint_vector
+from activesurv_common.ros.conversions import joint_vector, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
@@ -51,6 +51,9 @@ PARAMS = (
     Param('capture_lead', 0.3, 's before a demand instant to request capture', above=0.0),
     Param('settle_time', 0.1, 's to be still before capture', above=0.0),
     Param('camera_timeout', 0.5, 's without stage state or heartbeat: drop', above=0.0),
+    Param(
+        'capture_grace', 0.1, 's a capture request may wait for a fresh prediction', minimum=0.0
+    ),
     Param('frame_id', 'world', 'frame of plans and markers'),
 )
 
@@ -67,6 +70,7 @@ class DispatcherNode(Node):
             float(v['capture_lead']),
             float(v['settle_time']),
             float(v['camera_timeout']),
+            float(v['capture_grace']),
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.session = Dispatcher(self.setup, model, config)
@@ -127,7 +131,8 @@ class DispatcherNode(Node):
         demands = horizon_to_demands(msg)
         dropped = len(msg.demands) - len(demands)
         now = self._now()
-        self._publish(self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count))
+        stamp = time_to_sec(msg.header.stamp)
+        self._publish(self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count, stamp))
 
     def _on_tick(self) -> None:
         self._publish(self.session.tick(self._now()))

@@ -12,6 +12,7 @@ has passed, the demand is serviced.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,13 +114,25 @@ class CaptureScheduler:
         self.requested: dict[int, Capture] = {}
         self.serviced: set[int] = set()
 
-    def due(self, now: float, plan: Plan, demands: dict[int, Demand]) -> Capture | None:
-        """The capture to request now, if the first demand is within ``lead`` of its instant."""
+    def due(
+        self,
+        now: float,
+        plan: Plan,
+        demands: dict[int, Demand],
+        informed: float = math.inf,
+        grace: float = 0.0,
+    ) -> Capture | None:
+        """The capture to request now, if the first demand is within ``lead`` of its instant.
+
+        ``informed``: the time of the overhead fix behind ``plan``; a request waits (at most
+        ``grace`` s) for a plan informed at or after ``lead`` before the instant.
+        """
         j = plan.first_index
         if j < 0 or j in self.requested or j not in demands:
             return None
         d = demands[j]
-        if now < d.time - self.lead:
+        start = d.time - self.lead
+        if now < start or (informed < start - 1e-9 and now < start + grace):
             return None
         capture = Capture(d, tuple(plan.assigned()))
         self.requested[j] = capture

@@ -53,11 +53,14 @@ from activesurv_dispatch.best_pose import (
     aim_yaw,
     best_achievable_pose,
     camera_frames,
+    ideal_pose,
+    reachable_box,
     view_batch,
 )
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.sensors import Sensor, Setup
 from activesurv_dispatch.visibility import fused_visibility
+from activesurv_stages.kinematics import min_travel_time
 
 Array = NDArray[np.float64]
 
@@ -370,6 +373,10 @@ class DispatchPlanner:
                         c, Role.ASSIGNED, first.index, cand.joints, cand.visibility
                     )
                     free.remove(c)
+            if first.index not in self._closed:
+                for c, q in self._standby(first, frozen, free, joints, now).items():
+                    assignments[c] = Assignment(c, Role.PREASSIGNED, first.index, q, 0.0)
+                    free.remove(c)
             fused = self.fused_visibility(first, {c: assignments[c].desired for c in assignments})
             # Preassignment and prepositioning of the rest, demand by demand.
             for later in horizon[1:]:
@@ -384,6 +391,69 @@ class DispatchPlanner:
         for c in free:
             assignments[c] = Assignment(c, Role.IDLE, -1, joints[c], 0.0)
         return Plan(now, first_index, assignments, fused, replanned, ranking)
+
+    def _standby(
+        self,
+        first: Demand,
+        frozen: _Frozen,
+        free: list[str],
+        joints: dict[str, Array],
+        now: float,
+    ) -> dict[str, Array]:
+        """Poses for the spare cameras that make up a short first assignment.
+
+        An assignment made early in a track (a tentative prediction, little time left) can
+        freeze fewer than k cameras: the others could not see the demand from anywhere they
+        could reach by then. Rather than preposition them for later demands, the best-ranked
+        of them head for the first demand at once (to the best pose they can reach, or, when
+        none sees it yet, towards their ideal pose for it), so that the top-up finds them able
+        to see it before its capture request goes out.
+        """
+        missing = self.k - len([c for c in frozen.cameras if c in frozen.desired])
+        spare = [c for c in free if self.sensors[c].moves]
+        if missing <= 0 or not spare:
+            return {}
+        out: dict[str, Array] = {}
+        dt = max(first.time - now - self.settle_time, 0.0)
+        for c, cand in self.rank(first, spare, joints, now, len(spare))[:missing]:
+            out[c] = (
+                cand.joints if cand.visibility > 0.0 else self._towards(c, joints[c], first, dt)
+            )
+        return out
+
+    def _towards(self, camera_id: str, q0: Array, demand: Demand, dt: float) -> Array:
+        """The pose from which the camera sees ``demand``'s prediction soonest: over the
+        stage's whole range, the aimed pose in view with the least travel time (rest to rest,
+        the slower axis deciding); the stages move there at full speed."""
+        s = self.sensors[camera_id]
+        target = Target(demand.position, demand.normal, 0.0)
+        if s.has_linear:
+            lim = s.limits[0]
+            lin = np.unique(
+                np.concatenate([np.linspace(lim.min_position, lim.max_position, 61), [q0[0]]])
+            )
+            q = np.column_stack([lin, aim_yaw(s, lin, target)])
+        else:
+            q = aim_yaw(s, np.zeros(1), target)[:, None]
+        rot = s.limits[-1]
+        q[:, -1] = np.clip(q[:, -1], rot.min_position, rot.max_position)
+        vis, _, _, inside = view_batch(s, q, target, self.setup.marker_radius, self.model)
+        if not np.any(inside):
+            return q0
+        times = np.array(
+            [
+                max(
+                    min_travel_time(
+                        float(qi[j] - q0[j]), lim_j.max_velocity, lim_j.max_acceleration
+                    )
+                    for j, lim_j in enumerate(s.limits)
+                )
+                for qi in q
+            ]
+        )
+        times = np.where(inside, times, np.inf)
+        best = int(np.lexsort((-vis, times))[0])
+        return np.asarray(q[best], dtype=np.float64)
 
     def fused_visibility(self, demand: Demand, poses: dict[str, Array]) -> float:
         """v_f (eq. 2) of cameras at ``poses`` for ``demand``; out-of-view cameras add nothing."""

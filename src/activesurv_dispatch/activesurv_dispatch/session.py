@@ -39,6 +39,8 @@ class DispatcherConfig:
         capture_lead: s before a demand instant to send its capture request.
         settle_time: s a camera must be still before the instant.
         camera_timeout: s without stage state or imager heartbeat before a camera is dropped.
+        capture_grace: s past ``capture_lead`` a capture request may wait for the prediction
+            of the overhead frame taken at or after that moment (the one lockstep decides on).
     """
 
     k: int = 3
@@ -46,6 +48,7 @@ class DispatcherConfig:
     capture_lead: float = 0.3
     settle_time: float = 0.1
     camera_timeout: float = 0.5
+    capture_grace: float = 0.1
 
 
 @dataclass
@@ -96,6 +99,10 @@ class Dispatcher:
         self.plan_ms: list[float] = []
         self.counts: Counter[str] = Counter()
         self._manoeuvres = 0
+        self._announced: dict[int, tuple[str, ...]] = {}
+        self.horizon_stamp = -math.inf  # the overhead fix time behind the current horizon
+        self._stalls: dict[str, float] = {}  # signal -> when every camera fell silent
+        self._stall_over: dict[str, float] = {}  # signal -> when the stall ended
 
     # -- inputs ----------------------------------------------------------------------------
     def on_joints(self, camera_id: str, q: ArrayLike, now: float) -> Outputs:
@@ -114,10 +121,17 @@ class Dispatcher:
         self.beat_stamp[camera_id] = now
 
     def set_horizon(
-        self, demands: Sequence[Demand], now: float, dropped: int = 0, manoeuvres: int = 0
+        self,
+        demands: Sequence[Demand],
+        now: float,
+        dropped: int = 0,
+        manoeuvres: int = 0,
+        stamp: float | None = None,
     ) -> Outputs:
         """A new rolling horizon; ``dropped`` malformed demands were left out of it;
-        ``manoeuvres``: the predictor's manoeuvre count of this track (a change replans)."""
+        ``manoeuvres``: the predictor's manoeuvre count of this track (a change replans);
+        ``stamp``: the time of the overhead fix it was predicted from (default ``now``)."""
+        self.horizon_stamp = now if stamp is None else stamp
         self.counts['bad_demands'] += dropped
         manoeuvred = manoeuvres != self._manoeuvres and manoeuvres > 0
         self._manoeuvres = manoeuvres
@@ -143,6 +157,7 @@ class Dispatcher:
         out = self._replan(now)
         if manoeuvred:
             out.events.append(('info', f'the object manoeuvred (t={now:.2f} s): replanning'))
+        out.merge(self._request_due(now))
         return out
 
     # -- the work --------------------------------------------------------------------------
@@ -157,6 +172,18 @@ class Dispatcher:
         if plan.replanned:
             out.events.append(
                 ('info', f'replanned demand {plan.first_index}: the prediction moved')
+            )
+        assigned = tuple(plan.assigned())
+        if plan.first_index >= 0 and self._announced.get(plan.first_index) != assigned:
+            self._announced[plan.first_index] = assigned
+            ranking = ', '.join(f'{c} {v:.3g}' for c, v in plan.ranking)
+            heard = sorted(c for c in self.joints if c not in self.planner.excluded)
+            out.events.append(
+                (
+                    'info',
+                    f'demand {plan.first_index} assigned {list(assigned)} (t={now:.2f} s; '
+                    f'visibility {ranking}; cameras heard {heard})',
+                )
             )
         out.goals = self.motion.commands(plan, self.demands)
         if not self.horizon and not self.scheduler.in_flight():
@@ -173,13 +200,14 @@ class Dispatcher:
         timeout = self.config.camera_timeout
         out = Outputs()
         changed = False
-        # Every stage (or every imager) silent at once, briefly: this node or that transport
-        # stalled (a busy process sees its timer before the messages queued behind it), not
-        # all of them died. Dropping them all would leave the next demand without a camera;
-        # wait a little. Each signal is judged on its own: stage states stalled together do
-        # not hide an imager whose heartbeat stopped while the others' go on.
-        stages_stalled = self._stalled(self.joint_stamp, now)
-        beats_stalled = self._stalled(self.beat_stamp, now)
+        # Every stage (or every imager) silent at once: this node or that transport stalled
+        # (a busy process sees its timer before the messages queued behind it), not all of
+        # them died. Dropping them all would leave the next demand without a camera, however
+        # long it lasts; a camera is judged only while others of its kind are heard. Each
+        # signal is judged on its own: stage states stalled together do not hide an imager
+        # whose heartbeat stopped while the others' go on.
+        stages_stalled = self._stalled('stage state', self.joint_stamp, now, out)
+        beats_stalled = self._stalled('imager heartbeat', self.beat_stamp, now, out)
         for cid, stamp in self.joint_stamp.items():
             why = ''
             if now - stamp > timeout and (cid in self.down or not stages_stalled):
@@ -211,11 +239,34 @@ class Dispatcher:
             out.merge(self._replan(now))
         return out
 
-    def _stalled(self, stamps: dict[str, float], now: float) -> bool:
-        """Whether every live camera's ``stamps`` went silent together, and not for long."""
+    def _stalled(self, signal: str, stamps: dict[str, float], now: float, out: Outputs) -> bool:
+        """Whether every live camera's ``signal`` went silent together (or did so less than
+        ``camera_timeout`` ago: the others' messages are still on their way); says when a
+        stall begins and ends."""
         timeout = self.config.camera_timeout
         ages = [now - t for c, t in stamps.items() if c not in self.down]
-        return len(ages) > 1 and timeout < min(ages) < 3.0 * timeout
+        silent = len(ages) > 1 and min(ages) > timeout
+        began = self._stalls.get(signal)
+        if silent and began is None:
+            self._stalls[signal] = now - min(ages)
+            self._stall_over.pop(signal, None)
+            self.counts['stalls'] += 1
+            out.events.append(
+                (
+                    'warning',
+                    f'every {signal} silent at once for {min(ages):.2f} s (t={now:.2f} s): '
+                    'this machine or the transport stalled; no camera is dropped for it',
+                )
+            )
+        elif not silent and began is not None:
+            del self._stalls[signal]
+            self._stall_over[signal] = now
+            out.events.append(('info', f'{signal}s heard again after {now - began:.2f} s'))
+        over = self._stall_over.get(signal)
+        if over is not None and now - over > timeout:
+            del self._stall_over[signal]
+            over = None
+        return silent or over is not None
 
     def tick(self, now: float, serviced_until: float | None = None) -> Outputs:
         """Liveness, due capture requests, missed demands and serviced demands at ``now``.
@@ -226,20 +277,7 @@ class Dispatcher:
                 (default ``now``); lockstep looks ahead to the end of its step.
         """
         out = self._check_alive(now)
-        if self.plan is not None:
-            capture = self.scheduler.due(now, self.plan, self.demands)
-            if capture is not None:
-                self.planner.close(capture.demand.index)
-                self.motion.holding.update(capture.cameras)
-                self.counts['captures'] += 1
-                out.captures.append(capture)
-                out.events.append(
-                    (
-                        'info',
-                        f'capture demand {capture.demand.index} at {capture.demand.time:.2f} s '
-                        f'with {list(capture.cameras)}',
-                    )
-                )
+        out.merge(self._request_due(now))
         for missed in self.scheduler.missed(now, self.demands):
             self.planner.serviced(missed.demand.index)
             self.counts['missed_demands'] += 1
@@ -260,6 +298,31 @@ class Dispatcher:
         # A continuous session runs for hours: demands long past are forgotten.
         for j in self.scheduler.prune(now - FORGET_AFTER):
             self.demands.pop(j, None)
+            self._announced.pop(j, None)
+        return out
+
+    def _request_due(self, now: float) -> Outputs:
+        """The first demand's capture request, once it is due: ``capture_lead`` before its
+        instant and planned on the prediction of an overhead fix taken by then (or, with no
+        such prediction, ``capture_grace`` later): its camera set is final from here on."""
+        out = Outputs()
+        if self.plan is None:
+            return out
+        capture = self.scheduler.due(
+            now, self.plan, self.demands, self.horizon_stamp, self.config.capture_grace
+        )
+        if capture is not None:
+            self.planner.close(capture.demand.index)
+            self.motion.holding.update(capture.cameras)
+            self.counts['captures'] += 1
+            out.captures.append(capture)
+            out.events.append(
+                (
+                    'info',
+                    f'capture demand {capture.demand.index} at {capture.demand.time:.2f} s '
+                    f'with {list(capture.cameras)}',
+                )
+            )
         return out
 
     def status(self) -> dict[str, object]:

@@ -72,15 +72,27 @@ def test_every_stage_silent_at_once_is_a_stall_not_every_camera_dead() -> None:
     out = d.tick(0.6)
     assert not d.down
     assert not [e for e in out.events if 'dispatching without it' in e[1]]
-    # ... but one silent while the others speak is dropped, stall or not,
-    for c, q in away.items():
-        if c != 'cam2':
-            d.on_joints(c, q, 1.0)
-    d.tick(1.0)
+    # ... but one silent while the others speak is dropped, stall or not (once the others
+    # had camera_timeout to be heard after the stall),
+    for t in (1.0, 1.55):
+        for c, q in away.items():
+            if c != 'cam2':
+                d.on_joints(c, q, t)
+        d.tick(t)
+        assert set(d.down) == ({'cam2'} if t > 1.0 else set())
+    # and a silence of all of them, however long, is a stall: nobody else is dropped.
+    out = d.tick(2.6)
     assert set(d.down) == {'cam2'}
-    # and a silence that lasts is a silence.
-    d.tick(2.6)
-    assert set(d.down) == set(away)
+    assert [e for e in out.events if 'stalled' in e[1]]
+    # When the stall ends, those not heard yet get camera_timeout to be heard ...
+    d.on_joints('cam1', away['cam1'], 2.7)
+    d.tick(2.75)
+    assert set(d.down) == {'cam2'}
+    # ... and one still silent after that is dropped.
+    for c in ('cam1', 'cam3'):
+        d.on_joints(c, away[c], 3.3)
+    d.tick(3.3)
+    assert set(d.down) == {'cam2', 'cam4'}
 
 
 def test_a_stage_stall_does_not_hide_an_imager_that_died() -> None:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.evaluation import (
     DemandRecord,
     PredictionLog,
@@ -150,6 +151,9 @@ def run_lockstep(
     records: dict[int, DemandRecord] = {}
     predicted = PredictionLog()
     dt = 1.0 / float(cfg['overhead']['rate'])
+    latency = float(cfg.get('lockstep', {}).get('plan_latency', 0.0))
+    if not 0.0 <= latency < dt:
+        raise ConfigError(f'lockstep plan_latency must be in [0, {dt:g}) s, got {latency:g}')
     n_steps = int(np.ceil(exp.end_time / dt)) + 1
     for step in range(n_steps):
         t = step * dt
@@ -166,16 +170,18 @@ def run_lockstep(
             ):
                 horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
                 predicted.add(t, p.index, p.position, p.covariance)
+        # The dispatcher decides ``latency`` after the frame, as the graph's does.
+        now = t + latency
         for c, cam in cameras.items():
-            dispatcher.on_joints(c, cam.joints(t), t)
-        out = dispatcher.set_horizon(horizon, t, manoeuvres=tracker.manoeuvres.count)
-        out.merge(dispatcher.tick(t, serviced_until=t + dt - 1e-9))
+            dispatcher.on_joints(c, cam.joints(now), now)
+        out = dispatcher.set_horizon(horizon, now, manoeuvres=tracker.manoeuvres.count, stamp=t)
+        out.merge(dispatcher.tick(now, serviced_until=t + dt - 1e-9))
         for cmd in out.goals:
             for ax, goal, v in zip(
                 cameras[cmd.camera_id].axes, cmd.positions, cmd.max_velocities, strict=True
             ):
                 with contextlib.suppress(LimitError):  # planned poses are inside the limits
-                    ax.command(t, float(goal), float(v))
+                    ax.command(now, float(goal), float(v))
         if plan_log is not None:
             plan_log.extend((c.demand.index, c.cameras) for c in out.captures)
         for done in out.serviced:

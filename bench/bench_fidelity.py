@@ -1,9 +1,10 @@
 """Graph-lockstep fidelity (``fidelity.*``): the node graph at rtf 1 against lockstep.
 
-The six experiments (Sets A and B, static, medium and fast) over ``ACTIVESURV_BENCH_FIDELITY_SEEDS``
-seeds (1,2,3 by default) on the default rig and its cached calibration, once in lockstep (in
-this process) and once as the node graph at rtf 1 (``activesurv experiment``), then the same
-graph runs again with one core taken by a busy process (``hog_*``):
+The six experiments (Sets A and B, static, medium and fast) over the seeds of
+``ACTIVESURV_BENCH_FIDELITY_SEEDS`` (1,2,3 by default) on the default rig and its cached
+calibration, once in lockstep (in this process) and once as the node graph at rtf 1
+(``activesurv experiment``), then the same graph runs again with one core taken by a busy
+process (``hog_*``):
 
 * ``served_lost``: demands lockstep answers ``ok`` that the graph does not (goal 0);
 * ``same_cameras_fraction``: demands given the same number of cameras in both modes (>= 0.98);

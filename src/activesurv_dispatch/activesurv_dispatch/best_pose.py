@@ -16,11 +16,13 @@ soft limits.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.occlusion import Obstacle, blocked, inflate
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.sensors import Sensor
 from activesurv_dispatch.visibility import visibility_from_variances
@@ -69,8 +71,13 @@ def view_batch(
     radius: float,
     model: SensorModel,
     margin_px: float = 8.0,
+    occluders: Sequence[Obstacle] = (),
 ) -> tuple[Array, Array, Array, Array]:
-    """(visibility, distance, bearing, in_view) for each joint vector in ``q`` (N, J)."""
+    """(visibility, distance, bearing, in_view) for each joint vector in ``q`` (N, J).
+
+    With ``occluders``, a camera whose line of sight to the marker passes within the marker's
+    radius (plus the prediction's margin) of one is not in view: eq. 1's occluded case.
+    """
     centres, R = camera_frames(sensor, q)
     rel = target.position[None, :] - centres
     d = np.linalg.norm(rel, axis=1)
@@ -90,6 +97,9 @@ def view_batch(
         & (v + r_px <= cam.height - 1)
         & (bearing < model.max_bearing)
     )
+    if occluders:
+        grown = inflate(occluders, radius + VIEW_SIGMAS * target.sigma)
+        in_view &= ~blocked(centres, target.position, grown)
     vis = visibility_from_variances(model.variances_batch(d, bearing))
     return np.where(in_view, vis, 0.0), d, bearing, in_view
 
@@ -133,10 +143,12 @@ def best_achievable_pose(
     model: SensorModel,
     radius: float,
     samples: int = 21,
+    occluders: Sequence[Obstacle] = (),
 ) -> Candidate:
     """The reachable configuration with the highest visibility of ``target`` in ``dt`` seconds.
 
-    A static camera (or ``dt <= 0``) can only stay where it is.
+    A static camera (or ``dt <= 0``) can only stay where it is. A pose whose line of sight
+    ``occluders`` block sees nothing (:func:`view_batch`).
     """
     q0 = np.asarray(current, dtype=np.float64)
     lo, hi = reachable_box(sensor, q0, max(dt, 0.0))
@@ -150,20 +162,27 @@ def best_achievable_pose(
         return np.column_stack([lin, yaw]) if sensor.has_linear else yaw[:, None]
 
     q = candidates(s)
-    vis, d, b, _ = view_batch(sensor, q, target, radius, model)
+    vis, d, b, _ = view_batch(sensor, q, target, radius, model, occluders=occluders)
     best = int(np.argmax(vis))
     if sensor.has_linear and len(s) > 2 and hi[0] > lo[0]:
         step = (hi[0] - lo[0]) / (samples - 1)
         fine = np.clip(np.linspace(q[best, 0] - step, q[best, 0] + step, 11), lo[0], hi[0])
         qf = candidates(fine)
-        vf, df, bf, inf = view_batch(sensor, qf, target, radius, model)
+        vf, df, bf, inf = view_batch(sensor, qf, target, radius, model, occluders=occluders)
         j = int(np.argmax(vf))
         if vf[j] > vis[best]:
             return Candidate(qf[j], float(vf[j]), float(df[j]), float(bf[j]), bool(inf[j]))
     if vis[best] <= 0.0 and target.sigma > 0.0:
         # Nothing keeps the whole uncertainty region in view: still aim at the prediction.
         return best_achievable_pose(
-            sensor, q0, Target(target.position, target.normal, 0.0), dt, model, radius, samples
+            sensor,
+            q0,
+            Target(target.position, target.normal, 0.0),
+            dt,
+            model,
+            radius,
+            samples,
+            occluders,
         )
     if vis[best] <= 0.0:
         # Nothing reachable sees it: keep the configuration nearest to the current one.
@@ -173,9 +192,14 @@ def best_achievable_pose(
 
 
 def ideal_pose(
-    sensor: Sensor, current: ArrayLike, target: Target, model: SensorModel, radius: float
+    sensor: Sensor,
+    current: ArrayLike,
+    target: Target,
+    model: SensorModel,
+    radius: float,
+    occluders: Sequence[Obstacle] = (),
 ) -> Candidate:
     """The best pose anywhere within the soft limits (unlimited time: the clairvoyant bound)."""
     big = 1e6
     full = Sensor(sensor.camera_id, sensor.mount, sensor.camera, sensor.limits, True)
-    return best_achievable_pose(full, current, target, big, model, radius, samples=41)
+    return best_achievable_pose(full, current, target, big, model, radius, 41, occluders)

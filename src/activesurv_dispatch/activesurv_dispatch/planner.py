@@ -46,6 +46,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.occlusion import Obstacle
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
     Candidate,
@@ -53,8 +54,6 @@ from activesurv_dispatch.best_pose import (
     aim_yaw,
     best_achievable_pose,
     camera_frames,
-    ideal_pose,
-    reachable_box,
     view_batch,
 )
 from activesurv_dispatch.errors import DispatchConfigError
@@ -200,6 +199,10 @@ class DispatchPlanner:
         """Put a camera back into dispatching (its nodes are heard again)."""
         self.excluded.discard(camera_id)
 
+    def occluders(self, demand: Demand) -> tuple[Obstacle, ...]:
+        """What may stand between a camera and ``demand``'s marker: the cell's obstacles."""
+        return self.setup.obstacles
+
     # -- ranking -----------------------------------------------------------------------------
     def _can_ever_see(self, sensor: Sensor, demand: Demand) -> bool:
         lims = sensor.limits
@@ -273,6 +276,7 @@ class DispatchPlanner:
                     self.model,
                     self.setup.marker_radius,
                     self.samples,
+                    self.occluders(demand),
                 )
             else:
                 cand = Candidate(joints[cid], 0.0, math.nan, math.nan, False)
@@ -303,6 +307,7 @@ class DispatchPlanner:
                 new.target,
                 self.setup.marker_radius,
                 self.model,
+                occluders=self.occluders(new),
             )[3][0]
             if not inside:
                 return True
@@ -351,6 +356,7 @@ class DispatchPlanner:
                             self.model,
                             self.setup.marker_radius,
                             self.samples,
+                            self.occluders(first),
                         )
                     frozen.reference = first
                     self.replans += 1
@@ -437,7 +443,9 @@ class DispatchPlanner:
             q = aim_yaw(s, np.zeros(1), target)[:, None]
         rot = s.limits[-1]
         q[:, -1] = np.clip(q[:, -1], rot.min_position, rot.max_position)
-        vis, _, _, inside = view_batch(s, q, target, self.setup.marker_radius, self.model)
+        vis, _, _, inside = view_batch(
+            s, q, target, self.setup.marker_radius, self.model, occluders=self.occluders(demand)
+        )
         if not np.any(inside):
             return q0
         times = np.array(
@@ -462,7 +470,12 @@ class DispatchPlanner:
             s = self.sensors[c]
             _, R = camera_frames(s, np.asarray(q)[None, :])
             _, d, b, inside = view_batch(
-                s, np.asarray(q)[None, :], demand.target, self.setup.marker_radius, self.model
+                s,
+                np.asarray(q)[None, :],
+                demand.target,
+                self.setup.marker_radius,
+                self.model,
+                occluders=self.occluders(demand),
             )
             if inside[0]:
                 Rs.append(self.model.world_covariance(float(d[0]), float(b[0]), R[0]))

@@ -9,7 +9,7 @@ Joint order per camera: linear first (if any), then rotary; linear positions in 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,12 @@ from numpy.typing import NDArray
 from activesurv_common.camera_model import CameraModel, dynamic_camera
 from activesurv_common.errors import CalibrationError
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
+from activesurv_common.occlusion import (
+    Obstacle,
+    ObstacleError,
+    obstacles_from_list,
+    obstacles_to_list,
+)
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_stages.config import MotionClass, motion_class
 from activesurv_stages.kinematics import AxisLimits
@@ -101,12 +107,16 @@ class Setup:
     initial: dict[str, Array]
     marker_radius: float
     motion: MotionClass
+    obstacles: tuple[Obstacle, ...] = ()  # fixed solids of the cell (occlusion, eq. 1)
 
     def sensor(self, camera_id: str) -> Sensor:
         for s in self.sensors:
             if s.camera_id == camera_id:
                 return s
         raise DispatchConfigError(f'no camera {camera_id!r} in the set-up')
+
+    def with_obstacles(self, obstacles: Sequence[Obstacle]) -> Setup:
+        return replace(self, obstacles=tuple(obstacles))
 
     def with_initial(self, initial: dict[str, Array]) -> Setup:
         return replace(self, initial={k: np.asarray(v, dtype=float) for k, v in initial.items()})
@@ -156,7 +166,11 @@ def setup_to_dict(setup: Setup) -> dict[str, Any]:
         entry['initial'] = [float(v) for v in setup.initial[s.camera_id]]
         entry['intrinsics'] = s.camera.to_dict()
         cameras.append(entry)
-    return {'marker_radius': float(setup.marker_radius), 'cameras': cameras}
+    return {
+        'marker_radius': float(setup.marker_radius),
+        'cameras': cameras,
+        'obstacles': obstacles_to_list(setup.obstacles),
+    }
 
 
 def setup_from_dict(data: dict[str, Any], motion: str = 'fast') -> Setup:
@@ -183,7 +197,11 @@ def setup_from_dict(data: dict[str, Any], motion: str = 'fast') -> Setup:
     radius = float(data.get('marker_radius', 0.0125))
     if not (math.isfinite(radius) and radius > 0):
         raise DispatchConfigError('marker_radius must be > 0')
-    return Setup(sensors, initial, radius, cls)
+    try:
+        obstacles = obstacles_from_list(data.get('obstacles'))
+    except ObstacleError as exc:
+        raise DispatchConfigError(str(exc)) from exc
+    return Setup(sensors, initial, radius, cls, obstacles)
 
 
 def default_setup_path() -> Path:

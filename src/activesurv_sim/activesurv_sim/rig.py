@@ -20,6 +20,7 @@ Layout (SI units, world frame; the keys of :func:`rig_to_dict`)::
       camera_info: {...}
       pose: [x, y, z, qx, qy, qz, qw]       # T_world_overhead_optical_frame
     xy_table: {accuracy: [4.8e-05, 2.4e-05], seed: 0}
+    obstacles: []                           # boxes and cylinders in the cell (occlusion)
 
 Stage accuracy (Table I: linear 30 um, rotary 10 arcsec, xy table 48 / 24 um) is the largest
 error of where an axis really is against where it reports: a repeatable, seeded function of the
@@ -43,6 +44,7 @@ from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, rot_x, rot_y, rot_z
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
+from activesurv_common.occlusion import Obstacle, obstacles_from_list, obstacles_to_list
 from activesurv_sim.errors import SimError
 
 Array = NDArray[np.float64]
@@ -177,6 +179,8 @@ class Rig:
         table_accuracy: the xy table's largest position errors (x, y) in m.
         table_seed: draws the table's error map.
         seed: the perturbation seed (None for the nominal rig).
+        obstacles: fixed solids of the cell (world frame): the simulated cameras see them and
+            the system is told of them (:mod:`activesurv_common.occlusion`).
     """
 
     name: str
@@ -186,6 +190,7 @@ class Rig:
     table_accuracy: tuple[float, float] = TABLE_ACCURACY
     table_seed: int = 0
     seed: int | None = None
+    obstacles: tuple[Obstacle, ...] = ()
 
     def camera(self, camera_id: str) -> RigCamera:
         try:
@@ -287,6 +292,7 @@ def perturb_rig(rig: Rig, seed: int, p: Perturbation = PERTURBATION) -> Rig:
         rig.table_accuracy,
         int(seed),
         int(seed),
+        rig.obstacles,
     )
 
 
@@ -316,6 +322,7 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
             'accuracy': [float(v) for v in rig.table_accuracy],
             'seed': int(rig.table_seed),
         },
+        'obstacles': obstacles_to_list(rig.obstacles),
     }
 
 
@@ -382,6 +389,7 @@ def rig_from_dict(data: Any, defaults: Mapping[str, CameraMount] | None = None) 
             (_positive(acc_xy[0], 'xy table accuracy'), _positive(acc_xy[1], 'xy accuracy')),
             int(table.get('seed', 0)),
             None if seed is None else int(seed),
+            obstacles_from_list(data.get('obstacles')),
         )
     except (CalibrationError, TypeError, ValueError) as exc:
         if isinstance(exc, RigError):

@@ -122,7 +122,10 @@ def default_calibration() -> str | None:
 
 def calibration_dir(cache: Path, rig: Rig) -> Path:
     """Where the commissioning of ``rig`` is cached: one per rig content."""
-    digest = hashlib.sha256(yaml.safe_dump(rig_to_dict(rig), sort_keys=True).encode())
+    content = rig_to_dict(rig)
+    if not content['obstacles']:  # (rigs before obstacles existed keep their cache)
+        del content['obstacles']
+    digest = hashlib.sha256(yaml.safe_dump(content, sort_keys=True).encode())
     return cache / 'calibrations' / f'{rig.name}-{digest.hexdigest()[:10]}'
 
 

@@ -19,9 +19,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
@@ -126,6 +128,23 @@ def obstacles_from_list(items: Any, where: str = 'obstacles') -> tuple[Obstacle,
     return tuple(obstacle_from_dict(o, f'{where}[{i}]') for i, o in enumerate(items))
 
 
+def load_obstacles(path: str | Path) -> tuple[Obstacle, ...]:
+    """The ``obstacles`` list of a YAML file (a rig, set-up or hardware file); '' : none.
+
+    Raises:
+        ObstacleError: if the file cannot be read or its list is bad.
+    """
+    if not str(path):
+        return ()
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ObstacleError(f'cannot read obstacles from {path}: {exc}') from exc
+    if not isinstance(data, Mapping):
+        raise ObstacleError(f'{path}: expected a mapping with an "obstacles" list')
+    return obstacles_from_list(data.get('obstacles'), f'{path}: obstacles')
+
+
 def obstacle_to_dict(o: Obstacle) -> dict[str, Any]:
     if isinstance(o, Box):
         return {'kind': 'box', 'centre': list(o.centre), 'size': list(o.size)}
@@ -219,6 +238,40 @@ def inflate(obstacles: Sequence[Obstacle], margin: float) -> tuple[Obstacle, ...
         else:
             out.append(Cylinder(o.centre, o.radius + margin, o.height + 2 * margin))
     return tuple(out)
+
+
+def rim_points(marker: ArrayLike, normal: ArrayLike, radius: float, n: int = 8) -> Array:
+    """The centre and ``n`` points of the rim of a disc marker (``n + 1``, 3)."""
+    c = np.asarray(marker, dtype=np.float64).reshape(3)
+    z = np.asarray(normal, dtype=np.float64).reshape(3)
+    z = z / max(float(np.linalg.norm(z)), 1e-12)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    u = np.cross(z, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(z, u)
+    a = 2.0 * np.pi * np.arange(n) / n
+    rim = c + radius * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
+    return np.vstack([c, rim])
+
+
+def sight_blocked(
+    cameras: ArrayLike,
+    marker: ArrayLike,
+    obstacles: Sequence[Obstacle],
+    radius: float,
+    normal: ArrayLike | None = None,
+) -> NDArray[np.bool_]:
+    """Whether each camera centre's view of a disc marker of ``radius`` centred at ``marker``
+    is blocked or cut: with the marker's ``normal``, any of the lines of sight to its centre
+    and eight rim points passes through an obstacle; without it (conservatively), the line
+    of sight to the centre passes within ``radius`` of one."""
+    centres = np.atleast_2d(np.asarray(cameras, dtype=np.float64))
+    if normal is None:
+        return blocked(centres, marker, inflate(obstacles, radius))
+    out = np.zeros(len(centres), dtype=bool)
+    for p in rim_points(marker, normal, radius):
+        out |= blocked(centres, p, obstacles)
+    return out
 
 
 def inside(

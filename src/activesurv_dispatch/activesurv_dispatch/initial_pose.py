@@ -24,6 +24,7 @@ from itertools import permutations
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.occlusion import Obstacle
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import aim_yaw, best_achievable_pose, view_batch
 from activesurv_dispatch.errors import DispatchConfigError
@@ -71,17 +72,18 @@ def _scores(
     start: float,
     model: SensorModel,
     radius: float,
+    occluders: Sequence[Obstacle] = (),
 ) -> Array:
     if not sensor.moves:
         total = np.zeros(len(cands))
         for d in expected:
-            total += view_batch(sensor, cands, d.target, radius, model)[0]
+            total += view_batch(sensor, cands, d.target, radius, model, occluders=occluders)[0]
         return total
     achievable = np.array(
         [
             sum(
                 best_achievable_pose(
-                    sensor, q, d.target, d.time - start, model, radius, samples=9
+                    sensor, q, d.target, d.time - start, model, radius, 9, occluders
                 ).visibility
                 for d in expected
             )
@@ -92,7 +94,7 @@ def _scores(
     # which can reach almost anything in time: prefer watching the path over an arbitrary pose.
     already = np.zeros(len(cands))
     for d in expected:
-        already += view_batch(sensor, cands, d.target, radius, model)[0]
+        already += view_batch(sensor, cands, d.target, radius, model, occluders=occluders)[0]
     return np.asarray(achievable + ALREADY_WEIGHT * already, dtype=np.float64)
 
 
@@ -106,7 +108,10 @@ def _static_coverage(
         grid = _grid(s, 31, 241)
         cands[s.camera_id] = grid
         vis[s.camera_id] = np.array(
-            [view_batch(s, grid, d.target, radius, model)[0] for d in expected]
+            [
+                view_batch(s, grid, d.target, radius, model, occluders=setup.obstacles)[0]
+                for d in expected
+            ]
         ).T  # (candidates, demands)
     scale = max(float(max(v.max() for v in vis.values())), 1e-300) * len(expected)
     seen = {c: (v > 0).astype(int) for c, v in vis.items()}
@@ -177,7 +182,7 @@ def initial_poses(
     for s in setup.sensors:
         coarse = (31, 121) if not s.moves else (11, 25)
         cands = _with_aimed(s, _grid(s, *coarse), expected)
-        scores = _scores(s, cands, expected, start, model, radius)
+        scores = _scores(s, cands, expected, start, model, radius, setup.obstacles)
         best = cands[int(np.argmax(scores))]
         step = np.array(
             [
@@ -188,7 +193,7 @@ def initial_poses(
             ]
         )
         fine = _grid(s, 7, 7, best, step)
-        fine_scores = _scores(s, fine, expected, start, model, radius)
+        fine_scores = _scores(s, fine, expected, start, model, radius, setup.obstacles)
         j = int(np.argmax(fine_scores))
         out[s.camera_id] = fine[j] if fine_scores[j] >= scores.max() else best
     return out

@@ -46,9 +46,10 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_common.occlusion import Obstacle
+from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
+    VIEW_SIGMAS,
     Candidate,
     Target,
     aim_yaw,
@@ -168,6 +169,7 @@ class DispatchPlanner:
         self._frozen: dict[int, _Frozen] = {}
         self._serviced: set[int] = set()
         self.replans = 0
+        self.occlusion_swaps = 0  # cameras taken off an assignment because of occlusion
         self._manoeuvre = False
         self.excluded: set[str] = set()  # cameras judged dead: not dispatched
         self._closed: set[int] = set()  # demands whose capture request has gone out
@@ -198,6 +200,15 @@ class DispatchPlanner:
     def include(self, camera_id: str) -> None:
         """Put a camera back into dispatching (its nodes are heard again)."""
         self.excluded.discard(camera_id)
+
+    def _blocked(self, camera_id: str, q: Array, demand: Demand) -> bool:
+        """Whether an occluder stands between the camera at ``q`` and ``demand``'s marker."""
+        occluders = self.occluders(demand)
+        if not occluders:
+            return False
+        centre, _ = camera_frames(self.sensors[camera_id], np.asarray(q)[None, :])
+        radius = self.setup.marker_radius + VIEW_SIGMAS * demand.target.sigma
+        return bool(sight_blocked(centre, demand.position, occluders, radius)[0])
 
     def occluders(self, demand: Demand) -> tuple[Obstacle, ...]:
         """What may stand between a camera and ``demand``'s marker: the cell's obstacles."""
@@ -361,6 +372,20 @@ class DispatchPlanner:
                     frozen.reference = first
                     self.replans += 1
                     replanned = True
+                    # Ours, beyond the paper: a camera whose view of the demand something now
+                    # blocks leaves its assignment (until the capture request), to be replaced.
+                    if first.index not in self._closed:
+                        gone = [
+                            c
+                            for c in alive
+                            if frozen.desired[c].visibility <= 0.0
+                            and self._blocked(c, frozen.desired[c].joints, first)
+                        ]
+                        frozen.cameras = tuple(c for c in frozen.cameras if c not in gone)
+                        for c in gone:
+                            frozen.desired.pop(c, None)
+                        alive = [c for c in alive if c not in gone]
+                        self.occlusion_swaps += len(gone)
                 self._manoeuvre = False
                 missing = self.k - len(alive)
                 spare = [c for c in cams if c not in frozen.cameras]

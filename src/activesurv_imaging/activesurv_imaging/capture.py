@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
+from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
 from activesurv_imaging.errors import ImagingError, VisionErrors
@@ -65,6 +66,8 @@ class ImagerConfig:
         exact_state: wait (up to ``joint_hold`` past the frame) for a stage state stamped at
             the frame's instant itself, as stages that latch their position on the trigger
             publish (the simulated ones do): a replay then measures with the same state.
+        obstacles: the cell's solids: a marker not found (or rejected) behind one is reported
+            as occluded.
     """
 
     camera_id: str
@@ -80,6 +83,7 @@ class ImagerConfig:
     frame_rate: float = 0.0
     exposure_delay: float = 0.0
     motion_correction: bool = True
+    obstacles: tuple[Obstacle, ...] = ()
 
     def __post_init__(self) -> None:
         if self.trigger not in TRIGGERS:
@@ -112,6 +116,7 @@ class Request:
     demand_time: float
     prior_normal: NDArray[np.float64] | None
     velocity: NDArray[np.float64] | None = None
+    position: NDArray[np.float64] | None = None  # the predicted marker centre (world)
 
 
 class CaptureCore(Generic[F]):
@@ -169,9 +174,12 @@ class CaptureCore(Generic[F]):
         demand_time: float,
         prior_normal: ArrayLike | None,
         velocity: ArrayLike | None = None,
+        position: ArrayLike | None = None,
     ) -> None:
         prior = _finite(prior_normal)
-        self.pending.append(Request(index, demand_time, prior, _finite(velocity)))
+        self.pending.append(
+            Request(index, demand_time, prior, _finite(velocity), _finite(position))
+        )
 
     def add_frame(self, stamp: float, frame: F) -> None:
         """A frame by its stamp (its exposure instant is ``stamp - exposure_delay``)."""
@@ -266,6 +274,15 @@ class CaptureCore(Generic[F]):
             c.inject_flip,
         )
         obs = replace(obs, frame_offset=stamp - r.demand_time)
+        if (
+            obs.status in (ObservationStatus.NOT_FOUND, ObservationStatus.REJECTED)
+            and c.obstacles
+            and r.position is not None
+            and bool(
+                sight_blocked(T.t, r.position, c.obstacles, c.marker_radius, r.prior_normal)[0]
+            )
+        ):
+            obs = replace(obs, reason=f'occluded: an obstacle stands in the way ({obs.reason})')
         if c.motion_correction and r.velocity is not None and obs.position is not None:
             shift = r.velocity * (r.demand_time - stamp)
             obs = replace(obs, position=obs.position + shift, motion_correction=shift)

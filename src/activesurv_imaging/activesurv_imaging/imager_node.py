@@ -26,6 +26,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import ImageMarker
 
+from activesurv_common.occlusion import load_obstacles
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
@@ -60,6 +61,7 @@ PARAMS = (
     Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
+    Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
     Param('inject_flip', False, 'fault: take the wrong circle pose'),
@@ -79,7 +81,9 @@ class ImagerNode(Node):
         # The parameters are named as ImagerConfig's fields (exact_states: exact_state).
         fields = ImagerConfig.__dataclass_fields__
         config = ImagerConfig(
-            **{k: x for k, x in v.items() if k in fields}, exact_state=bool(v['exact_states'])
+            **{k: x for k, x in v.items() if k in fields},
+            exact_state=bool(v['exact_states']),
+            obstacles=load_obstacles(str(v['obstacles_file'])),
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)
@@ -125,7 +129,10 @@ class ImagerNode(Node):
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:
             n, v = vector3(msg.predicted_normal), vector3(msg.predicted_velocity)
-            self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n, v)
+            p = msg.predicted_position
+            self.core.request(
+                int(msg.demand_index), time_to_sec(msg.demand_instant), n, v, [p.x, p.y, p.z]
+            )
             self._on_tick()
 
     def _on_image(self, msg: Image) -> None:

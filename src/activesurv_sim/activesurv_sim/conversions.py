@@ -82,6 +82,7 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
         ),
         int(p['seed']),
         scene_of,
+        rig.obstacles if rig is not None else (),
     )
 
 

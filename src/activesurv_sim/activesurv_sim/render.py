@@ -75,6 +75,7 @@ class Plate:
     square_size: float = 0.0
     plate_level: float = BLACK_PLATE
     mark_level: float = WHITE_MARKER
+    one_sided: bool = False  # a face of a solid: not drawn from behind
 
     @staticmethod
     def disc(
@@ -226,6 +227,12 @@ def _shade(
     return level, label
 
 
+def _back_face(plate: Plate, T_world_camera: Transform) -> bool:
+    """A one-sided plate seen from behind (a solid's face turned away: its other faces
+    hide whatever it would)."""
+    return plate.one_sided and float((T_world_camera.t - plate.center) @ plate.normal) <= 0.0
+
+
 ANTIALIAS = ('coverage', 'supersample')
 _FAR = np.float32(1e3)  # plate coordinate (m) given to rays that miss a plate's plane
 
@@ -282,7 +289,10 @@ class Renderer:
         rng = np.random.default_rng() if rng is None else rng
         boxes = [
             (i, b)
-            for i, b in enumerate(self._plate_box(pl, T_world_camera) for pl in scene.plates)
+            for i, b in enumerate(
+                None if _back_face(pl, T_world_camera) else self._plate_box(pl, T_world_camera)
+                for pl in scene.plates
+            )
             if b
         ]
         gx, gy = scene.ambient_gradient

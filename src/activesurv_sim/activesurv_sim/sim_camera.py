@@ -15,8 +15,9 @@ simulated world's rendering is work a real lab's cameras do in hardware.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, unit
 from activesurv_common.mount import CameraMount
+from activesurv_common.occlusion import Box, Obstacle
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.errors import RenderError
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
@@ -44,8 +46,75 @@ class ObjectGeometry:
     plate_half_size: float = 0.03
 
 
-def object_scene(state: ArrayLike, geometry: ObjectGeometry) -> Scene:
-    """Plates of the object from a 9-vector (top xyz, side xyz, side normal xyz)."""
+OBSTACLE_LEVEL = 120.0  # grey fixtures: neither the black plates nor the white markers
+_FACETS = 16  # a cylinder's side as a prism of this many faces
+
+
+def obstacle_plates(obstacles: Sequence[Obstacle]) -> tuple[Plate, ...]:
+    """The faces of the cell's obstacles (one-sided, grey): boxes as six faces, cylinders as
+    a 16-sided prism capped by four squares turned by 22.5 degrees (a 16-pointed disc)."""
+    plates: list[Plate] = []
+    for o in obstacles:
+        c = np.asarray(o.centre, dtype=np.float64)
+        if isinstance(o, Box):
+            half = 0.5 * np.asarray(o.size, dtype=np.float64)
+            for k in range(3):
+                others = [j for j in range(3) if j != k]
+                for sign in (-1.0, 1.0):
+                    n = np.zeros(3)
+                    n[k] = sign
+                    x = np.zeros(3)
+                    x[others[0]] = 1.0
+                    y_axis = np.cross(n, x)
+                    j_y = int(np.argmax(np.abs(y_axis)))
+                    plates.append(
+                        Plate(
+                            c + n * half[k],
+                            n,
+                            x,
+                            (float(half[others[0]]), float(half[j_y])),
+                            plate_level=OBSTACLE_LEVEL,
+                            one_sided=True,
+                        )
+                    )
+            continue
+        r_in = o.radius * math.cos(math.pi / _FACETS)
+        side = o.radius * math.sin(math.pi / _FACETS)
+        for i in range(_FACETS):
+            a = 2.0 * math.pi * i / _FACETS
+            n = np.array([math.cos(a), math.sin(a), 0.0])
+            plates.append(
+                Plate(
+                    c + r_in * n,
+                    n,
+                    np.array([-math.sin(a), math.cos(a), 0.0]),
+                    (side, 0.5 * o.height),
+                    plate_level=OBSTACLE_LEVEL,
+                    one_sided=True,
+                )
+            )
+        for sign in (-1.0, 1.0):
+            n = np.array([0.0, 0.0, sign])
+            for i in range(4):
+                a = i * math.pi / 8.0
+                plates.append(
+                    Plate(
+                        c + n * 0.5 * o.height,
+                        n,
+                        np.array([math.cos(a), math.sin(a), 0.0]),
+                        (r_in, r_in),
+                        plate_level=OBSTACLE_LEVEL,
+                        one_sided=True,
+                    )
+                )
+    return tuple(plates)
+
+
+def object_scene(
+    state: ArrayLike, geometry: ObjectGeometry, extra: tuple[Plate, ...] = ()
+) -> Scene:
+    """Plates of the object from a 9-vector (top xyz, side xyz, side normal xyz), and
+    ``extra`` plates (the cell's obstacles: :func:`obstacle_plates`)."""
     s = np.asarray(state, dtype=np.float64).reshape(9)
     side_n = unit(s[6:9], 'side normal')
     horizontal = np.cross([0.0, 0.0, 1.0], side_n)
@@ -55,6 +124,7 @@ def object_scene(state: ArrayLike, geometry: ObjectGeometry) -> Scene:
         (
             Plate.disc(s[3:6], side_n, geometry.side_radius, geometry.plate_half_size, horizontal),
             Plate.disc(s[0:3], [0.0, 0.0, 1.0], geometry.top_radius, geometry.plate_half_size),
+            *extra,
         )
     )
 
@@ -70,11 +140,14 @@ class SimulatedCamera:
         noise: SensorNoise | None = None,
         seed: int = 0,
         scene_of: Callable[[NDArray[np.float64]], Scene] | None = None,
+        obstacles: Sequence[Obstacle] = (),
     ) -> None:
         """``scene_of(state)``: the scene of a state 9-vector (default: the object's markers,
-        :func:`object_scene`; commissioning: the boards on the carriage)."""
+        :func:`object_scene`; commissioning: the boards on the carriage); ``obstacles``: the
+        cell's solids, drawn in every frame."""
         self.camera = camera
         self.scene_of = scene_of
+        self.extra = obstacle_plates(obstacles)
         self.renderer = Renderer(camera)
         self.mount = mount
         self.geometry = ObjectGeometry() if geometry is None else geometry
@@ -202,7 +275,11 @@ class SimulatedCamera:
         else:
             T = self.mount
         s = np.asarray(state, dtype=np.float64)
-        scene = object_scene(s, self.geometry) if self.scene_of is None else self.scene_of(s)
+        if self.scene_of is None:
+            scene = object_scene(s, self.geometry, self.extra)
+        else:
+            scene = self.scene_of(s)
+            scene = replace(scene, plates=scene.plates + self.extra)
         return self.renderer.render(T, scene, self.noise, self.rng)
 
     def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:

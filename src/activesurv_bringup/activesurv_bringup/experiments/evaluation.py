@@ -100,6 +100,10 @@ class DemandRecord:
     latency: float | None = None
     predictions: list[dict[str, Any]] = field(default_factory=list)
     frame_offsets: dict[str, float] = field(default_factory=dict)  # camera: stamp - instant
+    object: int = 0  # the object it surveys (0: an experiment's one object)
+    # Assigned cameras whose line of sight to the marker was blocked at the instant (from
+    # the simulator's truth; None where nothing knows it: hardware runs).
+    occluded: list[str] | None = field(default_factory=list)
 
     @property
     def position_error(self) -> float | None:
@@ -136,6 +140,8 @@ class DemandRecord:
             'latency': self.latency,
             'predictions': self.predictions,
             'frame_offsets': {c: float(v) for c, v in self.frame_offsets.items()},
+            'object': self.object,
+            'occluded': None if self.occluded is None else list(self.occluded),
         }
 
 

@@ -213,9 +213,13 @@ def load_experiment(
     if rig is not None:
         try:
             setup = setup.calibrated(rig.calibration.mounts, rig.calibration.cameras)
+            setup = setup.with_obstacles(rig.rig.obstacles)  # the cell's fixtures are known
         except DispatchConfigError as exc:
             raise ConfigError(str(exc)) from exc
-        belief = json.dumps(setup_to_dict(setup), sort_keys=True)
+        believed = setup_to_dict(setup)
+        if not believed['obstacles']:  # (placements cached before obstacles existed stay valid)
+            del believed['obstacles']
+        belief = json.dumps(believed, sort_keys=True)
     exp = Experiment(
         set_name, system, seed, cfg, actual_spec, actual, expected, times, setup, model, rig
     )

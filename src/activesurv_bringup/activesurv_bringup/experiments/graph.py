@@ -160,6 +160,7 @@ def graph_specs(
             **mount_parameters(s),
             'reliable_images': True,
             'exact_states': True,  # the simulated stages latch their state at each instant
+            **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
         }
         if fault is not None and fault.kind is FaultKind.FROZEN:
             cam_params['inject_frozen'] = True

@@ -32,6 +32,7 @@ from activesurv_bringup.experiments.evaluation import (
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind, imager_injection
 from activesurv_common.mount import CameraMount
+from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher, DispatcherConfig
@@ -45,7 +46,7 @@ from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predic
 from activesurv_prediction.predictor import make_predictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace
 from activesurv_sim.render import Renderer, SensorNoise
-from activesurv_sim.sim_camera import ObjectGeometry, object_scene
+from activesurv_sim.sim_camera import ObjectGeometry, object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
 
@@ -135,6 +136,7 @@ def run_lockstep(
                 ImagerConfig(
                     s.camera_id,
                     exp.setup.marker_radius,
+                    obstacles=exp.setup.obstacles,
                     **imager_injection(by_cam.get(s.camera_id)),  # type: ignore[arg-type]
                 ),
                 s.mount,
@@ -147,6 +149,8 @@ def run_lockstep(
         if s.camera_id not in dead
     }
     z_sigma = float(cfg['fusion']['z_sigma'])
+    truth_obstacles = exp.rig.rig.obstacles if exp.rig is not None else ()
+    fixtures = obstacle_plates(truth_obstacles)  # what the cameras really see
 
     records: dict[int, DemandRecord] = {}
     predicted = PredictionLog()
@@ -158,7 +162,7 @@ def run_lockstep(
     for step in range(n_steps):
         t = step * dt
         state = _state_vector(exp, t)
-        img = over_renderer.render(T_over, object_scene(state, geometry), noise, rng)
+        img = over_renderer.render(T_over, object_scene(state, geometry, fixtures), noise, rng)
         fix = overhead_fix(img, over_cam, T_over_believed, om.top_height, exp.setup.marker_radius)
         if fix.xy is not None:
             tracker.update(t, fix.xy)
@@ -186,7 +190,7 @@ def run_lockstep(
             plan_log.extend((c.demand.index, c.cameras) for c in out.captures)
         for done in out.serviced:
             records[done.demand.index] = _capture(
-                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma
+                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma, truth_obstacles
             )
             if progress:
                 progress(len(records), len(exp.demand_times), done.demand.time)
@@ -222,11 +226,17 @@ def _capture(
     noise: SensorNoise,
     geometry: ObjectGeometry,
     z_sigma: float,
+    obstacles: Sequence[Obstacle] = (),
 ) -> DemandRecord:
     started = time.perf_counter()
     tj = capture.demand.time
     truth = exp.table().state(tj)
-    scene = object_scene(np.concatenate([truth.top, truth.side, truth.side_normal]), geometry)
+    scene = object_scene(
+        np.concatenate([truth.top, truth.side, truth.side_normal]),
+        geometry,
+        obstacle_plates(obstacles),
+    )
+    occluded = []
     answers: dict[str, Answer] = {}
     poses: dict[str, Array] = {}
     offsets: dict[str, float] = {}
@@ -236,6 +246,13 @@ def _capture(
         cam = cameras[cid]
         q = cam.joints(tj)
         T = cam.mount.pose_from_joints(q)  # where the camera really is
+        if (
+            obstacles
+            and sight_blocked(
+                T.t, truth.side, obstacles, exp.setup.marker_radius, truth.side_normal
+            )[0]
+        ):
+            occluded.append(cid)
         img = cam.renderer.render(T, scene, noise, rng)
         fault = faults.get(cid)
         if fault is not None and fault.kind is FaultKind.FROZEN:
@@ -243,7 +260,9 @@ def _capture(
                 cam.first_frame = img
             img = cam.first_frame
         # The imager's own rule: the frame at t_j and the stage state at t_j.
-        cam.imager.request(capture.demand.index, tj, capture.demand.normal)
+        cam.imager.request(
+            capture.demand.index, tj, capture.demand.normal, position=capture.demand.position
+        )
         cam.imager.add_frame(tj, img)
         cam.imager.add_joints(tj, q)
         obs = cam.imager.poll(tj)[0]
@@ -278,5 +297,6 @@ def _capture(
         rec.cameras = list(result.fused.cameras_used)
         rec.faulty = list(result.fused.cameras_faulty)
     rec.frame_offsets = offsets
+    rec.occluded = occluded
     rec.latency = time.perf_counter() - started
     return rec

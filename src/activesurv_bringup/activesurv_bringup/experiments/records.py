@@ -9,9 +9,20 @@ import numpy as np
 
 from activesurv_bringup.experiments.evaluation import DemandRecord, visibility_from_transforms
 from activesurv_common.geometry import Transform, matrix_from_quaternion
+from activesurv_common.occlusion import Obstacle, obstacles_from_list, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 
 STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
+
+
+def run_obstacles(info: dict[str, Any]) -> tuple[Obstacle, ...] | None:
+    """The simulated cell's obstacles from a run's description (None for a hardware run:
+    nothing there knows where the lines of sight really went)."""
+    if info.get('mode') == 'hardware' or 'hardware' in info:
+        return None
+    if 'obstacles' in info:  # a session's
+        return obstacles_from_list(info['obstacles'])
+    return obstacles_from_list((info.get('setup') or {}).get('obstacles'))
 
 
 def msg_stamp(msg: Any) -> float:
@@ -32,6 +43,8 @@ def demand_record(
     observations: Sequence[Any],
     est: tuple[Any, int] | None,
     model: SensorModel,
+    obstacles: Sequence[Obstacle] | None = None,
+    radius: float = 0.0125,
 ) -> DemandRecord:
     """The record of demand ``j`` at ``tj`` from its messages in a bag.
 
@@ -41,6 +54,10 @@ def demand_record(
         observations: its marker observations.
         est: its target estimate and the bag time it was recorded at (ns), or None.
         model: the sensor model, for the visibility of the cameras that imaged the marker.
+        obstacles: the simulated cell's obstacles (None: unknown, a hardware run): an
+            assigned camera whose line of sight from where its observation puts it (its
+            stage state at the frame) to the true marker passes through one is ``occluded``.
+        radius: the marker's radius (a line of sight that close to an obstacle cuts it).
     """
     rec = DemandRecord(j, tj, truth[:3], truth[3:])
     if req is not None:
@@ -56,6 +73,14 @@ def demand_record(
                 Transform.from_rt(matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z])
             )
     rec.visibility = visibility_from_transforms(model, seen, truth[:3], truth[3:]) if seen else 0.0
+    rec.occluded = None if obstacles is None else []
+    if obstacles and rec.occluded is not None and np.all(np.isfinite(truth[:3])):
+        for o in observations:
+            if str(o.camera_id) not in rec.assigned or o.status in (3, 4):
+                continue  # no frame or no stage state: where it looked from is unknown
+            p = o.camera_pose.position
+            if sight_blocked([p.x, p.y, p.z], truth[:3], obstacles, radius, truth[3:])[0]:
+                rec.occluded.append(str(o.camera_id))
     if est is None:
         rec.status = 'not_captured' if req is None else 'no_answer'
         rec.reason = (

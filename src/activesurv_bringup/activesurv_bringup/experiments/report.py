@@ -32,7 +32,12 @@ from activesurv_bringup.experiments.evaluation import (
     summary,
     write_results,
 )
-from activesurv_bringup.experiments.records import demand_record, msg_stamp, msg_vector
+from activesurv_bringup.experiments.records import (
+    demand_record,
+    msg_stamp,
+    msg_vector,
+    run_obstacles,
+)
 from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
@@ -84,6 +89,7 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
     if len(truth) == 0 and not truthless:
         raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
     model = SensorModel.load()
+    obstacles = run_obstacles(info)
     records = []
     for j, t_run in enumerate(times):
         tj = origin + t_run
@@ -91,7 +97,15 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
         if s is None:
             raise BagError(f'no ground truth near demand {j} at {t_run:.2f} s')
         rec = demand_record(
-            j, tj, s, requests.get(j), observations.get(j, []), estimates.get(j), model
+            j,
+            tj,
+            s,
+            requests.get(j),
+            observations.get(j, []),
+            estimates.get(j),
+            model,
+            obstacles,
+            float(info.get('marker_radius', 0.0125)),
         )
         rec.t = t_run
         rec.predictions = predicted.picks(j, tj)

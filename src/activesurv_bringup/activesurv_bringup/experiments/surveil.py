@@ -35,8 +35,14 @@ from activesurv_bringup.experiments.hardware_graph import (
     place_cameras,
 )
 from activesurv_bringup.experiments.options import RunOptions
-from activesurv_bringup.experiments.records import demand_record, msg_stamp, msg_vector
+from activesurv_bringup.experiments.records import (
+    demand_record,
+    msg_stamp,
+    msg_vector,
+    run_obstacles,
+)
 from activesurv_bringup.rig.rigs import RigChoice
+from activesurv_common.occlusion import obstacles_to_list
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_hardware.hardware_file import Hardware
@@ -150,6 +156,7 @@ def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
         },
         'initial_poses': {c: [float(v) for v in q] for c, q in exp.setup.initial.items()},
         'marker_radius': exp.setup.marker_radius,
+        'obstacles': obstacles_to_list(exp.setup.obstacles),
     }
 
 
@@ -358,6 +365,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         elif m.topic == '/target_estimate':
             estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
     model = SensorModel.load()
+    obstacles = run_obstacles(info)
     demands = []
     for j in sorted(set(requests) | set(estimates)):
         req = requests.get(j)
@@ -369,7 +377,9 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         s = truth.at(tj, hold=0.5)
         if s is None:
             continue
-        rec = demand_record(j, tj, s, req, observations.get(j, []), estimates.get(j), model)
+        rec = demand_record(
+            j, tj, s, req, observations.get(j, []), estimates.get(j), model, obstacles
+        )
         doc = rec.to_json()
         doc['t'] = tj - origin
         doc['object'] = object_of.get(j, 0)

@@ -39,7 +39,7 @@ def _frame(obstacles: tuple[Box | Cylinder, ...]) -> np.ndarray:
 def test_an_obstacle_is_drawn_over_the_marker_behind_it(obstacle: Box | Cylinder) -> None:
     clear, hidden = _frame(()), _frame((obstacle,))
     cam = dynamic_camera('cam1')
-    u, v = int(round(cam.cx)), int(round(cam.cy))  # the marker's centre, straight ahead
+    u, v = round(cam.cx), round(cam.cy)  # the marker's centre, straight ahead
     assert clear[v, u] > 200
     assert abs(int(hidden[v, u]) - OBSTACLE_LEVEL) < 10
     assert sight_blocked(EYE, MARKER, [obstacle], 0.0125, NORMAL)[0]

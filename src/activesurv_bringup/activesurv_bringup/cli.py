@@ -438,11 +438,13 @@ def experiment(
     doc: dict[str, Any]
     if mode == 'lockstep':
         from activesurv_bringup.experiments.lockstep import run_lockstep
+        from activesurv_bringup.experiments.tracking import track_metrics
 
         def progress(j: int, m: int, t: float) -> None:
             say(f'demand {j} of {m}, simulated time {t:.1f} s')
 
-        records = run_lockstep(exp, opts.faults, progress)
+        track_log: list[Any] = []
+        records = run_lockstep(exp, opts.faults, progress, track_log=track_log)
         doc = results_document(
             set_name,
             system,
@@ -454,6 +456,7 @@ def experiment(
                 'faults': [str(f) for f in opts.faults],
                 **choice.describe(),
             },
+            track_metrics([m for m, _ in track_log], [t for _, t in track_log]),
         )
         write_results(out / 'results.json', doc)
     elif opts.hosts == 'netns':

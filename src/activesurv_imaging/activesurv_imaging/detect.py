@@ -54,6 +54,7 @@ class DetectorConfig:
         max_coarse_residual: RMS distance of the blob contour to its coarse ellipse.
         profile_half_length: edge search range along the normal.
         subpixel: refine edges to sub-pixel (off: the boundary pixels are used as they are).
+        near_gate: px from the expected position within which one of several markers is taken.
     """
 
     min_semi_minor: float = 4.0
@@ -65,6 +66,7 @@ class DetectorConfig:
     max_coarse_residual: float = 1.5
     profile_half_length: float = 4.0
     subpixel: bool = True
+    near_gate: float = 60.0
 
 
 @dataclass(frozen=True)
@@ -157,7 +159,10 @@ def subpixel_edges(
 
 
 def detect_marker_detailed(
-    image: ArrayLike, config: DetectorConfig | None = None, fitter: Fitter | None = None
+    image: ArrayLike,
+    config: DetectorConfig | None = None,
+    fitter: Fitter | None = None,
+    near: ArrayLike | None = None,
 ) -> Detection:
     """Detect the marker and say why not when there is none.
 
@@ -166,13 +171,65 @@ def detect_marker_detailed(
         config: detector limits.
         fitter: ellipse fitter for the boundary points (default: the weighted fit of eq. 3-4);
             the benchmark swaps in OpenCV's fitters here.
+        near: (u, v) where the marker is expected (several objects in view): of several
+            markers, the one nearest there (within ``near_gate`` px); None: one marker or none.
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
     """
     cfg = DetectorConfig() if config is None else config
-    fit: Fitter = fit_ellipse if fitter is None else fitter
     img = as_gray8(image)
+    found = _marker_blobs(img, cfg)
+    if isinstance(found, Detection):
+        return found
+    accepted, reasons, candidates = found
+    if len(accepted) > 1 and near is not None:
+        uv = np.asarray(near, dtype=np.float64).reshape(2)
+        d = [float(np.hypot(*(c.center - uv))) for _, c in accepted]
+        j = int(np.argmin(d))
+        if d[j] > cfg.near_gate:
+            return Detection(
+                DetectionStatus.REJECTED,
+                f'{len(accepted)} markers in view, none within {cfg.near_gate:.0f} px of where '
+                f'the demanded one should be ({uv[0]:.0f}, {uv[1]:.0f})',
+                candidates=candidates,
+            )
+        accepted = [accepted[j]]
+    if len(accepted) > 1:
+        centres = ', '.join(f'({c.center[0]:.0f}, {c.center[1]:.0f})' for _, c in accepted)
+        return Detection(
+            DetectionStatus.REJECTED,
+            f'{len(accepted)} markers in view at {centres}; expected one',
+            candidates=candidates,
+        )
+    if not accepted:
+        if reasons:
+            return Detection(DetectionStatus.REJECTED, reasons[0], candidates=candidates)
+        return Detection(
+            DetectionStatus.NOT_FOUND, 'no marker-sized bright region', candidates=candidates
+        )
+    return _fit_blob(img, accepted[0], cfg, fitter, candidates)
+
+
+def detect_markers(
+    image: ArrayLike, config: DetectorConfig | None = None, fitter: Fitter | None = None
+) -> list[Detection]:
+    """Every marker in the image (the overhead camera with several objects on the table):
+    one detection each, OK or why its fit failed; none when there is no marker."""
+    cfg = DetectorConfig() if config is None else config
+    img = as_gray8(image)
+    found = _marker_blobs(img, cfg)
+    if isinstance(found, Detection):
+        return []
+    accepted, _, candidates = found
+    return [_fit_blob(img, blob, cfg, fitter, candidates) for blob in accepted]
+
+
+def _marker_blobs(
+    img: NDArray[np.uint8], cfg: DetectorConfig
+) -> Detection | tuple[list[tuple[NDArray[Any], Ellipse]], list[str], int]:
+    """The bright blobs that pass as markers, the reasons the others did not, and how many
+    there were; or a Detection saying why there can be none."""
     # Percentiles from the 256-bin histogram: a full-frame sort costs milliseconds.
     cdf = np.cumsum(np.bincount(img.ravel(), minlength=256)) / img.size
     lo, hi = int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
@@ -234,21 +291,19 @@ def detect_marker_detailed(
             reasons.append(f'not an ellipse: contour residual {rms:.2f} px')
             continue
         accepted.append((contour, coarse))
+    return accepted, reasons, candidates
 
-    if len(accepted) > 1:
-        centres = ', '.join(f'({c.center[0]:.0f}, {c.center[1]:.0f})' for _, c in accepted)
-        return Detection(
-            DetectionStatus.REJECTED,
-            f'{len(accepted)} markers in view at {centres}; expected one',
-            candidates=candidates,
-        )
-    if not accepted:
-        if reasons:
-            return Detection(DetectionStatus.REJECTED, reasons[0], candidates=candidates)
-        return Detection(
-            DetectionStatus.NOT_FOUND, 'no marker-sized bright region', candidates=candidates
-        )
-    contour, coarse = accepted[0]
+
+def _fit_blob(
+    img: NDArray[np.uint8],
+    blob: tuple[NDArray[Any], Ellipse],
+    cfg: DetectorConfig,
+    fitter: Fitter | None,
+    candidates: int,
+) -> Detection:
+    """The weighted ellipse fit of one marker blob's sub-pixel edges."""
+    fit: Fitter = fit_ellipse if fitter is None else fitter
+    contour, coarse = blob
     boundary = contour.reshape(-1, 2).astype(np.float64)
     edges = subpixel_edges(img, boundary, coarse, cfg) if cfg.subpixel else boundary
     if len(edges) < max(12, len(boundary) // 2):

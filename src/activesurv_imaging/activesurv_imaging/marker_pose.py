@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_imaging.circle_pose import CirclePose, choose_pose, circle_poses
 from activesurv_imaging.detect import (
+    Detection,
     DetectionStatus,
     DetectorConfig,
     Fitter,
@@ -67,6 +68,8 @@ def measure_marker(
     prior_normal: ArrayLike | None = None,
     fitter: Fitter | None = None,
     config: DetectorConfig | None = None,
+    near: ArrayLike | None = None,
+    detection: Detection | None = None,
 ) -> MarkerMeasurement:
     """Measure the marker pose in one image.
 
@@ -79,12 +82,14 @@ def measure_marker(
             the camera more directly.
         fitter: ellipse fitter (default: the weighted fit of eq. 3-4).
         config: detector limits.
+        near: (u, v) where the marker should be, to pick it among several in view.
+        detection: the marker's detection when already made (several markers: each in turn).
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
     """
     fit: Fitter = fit_ellipse if fitter is None else fitter
-    det = detect_marker_detailed(image, config, fit)
+    det = detect_marker_detailed(image, config, fit, near) if detection is None else detection
     if det.status is not DetectionStatus.OK or det.ellipse is None:
         status = (
             MeasurementStatus.NOT_FOUND

@@ -21,8 +21,8 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, matrix_from_quaternion
-from activesurv_imaging.detect import DetectorConfig
-from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
+from activesurv_imaging.detect import DetectorConfig, detect_markers
+from activesurv_imaging.marker_pose import MarkerMeasurement, MeasurementStatus, measure_marker
 
 Array = NDArray[np.float64]
 
@@ -54,12 +54,35 @@ def overhead_fix(
     """Locate the top marker in an overhead image."""
     up_in_camera = T_world_camera.inverse().rotate([0.0, 0.0, 1.0])
     m = measure_marker(image, camera, radius, up_in_camera, config=config)
+    return _on_plane(m, T_world_camera, marker_height)
+
+
+def overhead_fixes(
+    image: ArrayLike,
+    camera: CameraModel,
+    T_world_camera: Transform,
+    marker_height: float,
+    radius: float,
+    config: DetectorConfig = OVERHEAD_DETECTOR,
+) -> list[OverheadFix]:
+    """Every top marker in an overhead image (several objects on the table): a fix each,
+    or why that marker gave none."""
+    up_in_camera = T_world_camera.inverse().rotate([0.0, 0.0, 1.0])
+    out = []
+    for det in detect_markers(image, config):
+        m = measure_marker(image, camera, radius, up_in_camera, config=config, detection=det)
+        out.append(_on_plane(m, T_world_camera, marker_height))
+    return out
+
+
+def _on_plane(m: MarkerMeasurement, T_world_camera: Transform, height: float) -> OverheadFix:
+    """Where the ray through a measured marker's centre meets the plane z = ``height``."""
     if m.status is not MeasurementStatus.OK or m.pose is None:
         return OverheadFix(None, m.reason or m.status.name)
     ray = T_world_camera.rotate(m.pose.center)
     if abs(ray[2]) < 1e-9:
         return OverheadFix(None, 'the ray to the marker is parallel to the marker plane')
-    s = (marker_height - T_world_camera.t[2]) / ray[2]
+    s = (height - T_world_camera.t[2]) / ray[2]
     if not (math.isfinite(s) and s > 0.0):
         return OverheadFix(None, 'the marker plane is behind the overhead camera')
     p = T_world_camera.t + s * ray

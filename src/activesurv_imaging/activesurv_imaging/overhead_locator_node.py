@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections import Counter
 from typing import Any
 
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import PointStamped, Pose, PoseArray
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
@@ -26,7 +26,7 @@ from activesurv_common.ros.conversions import image_to_gray, model_from_camera_i
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_imaging.errors import VisionErrors
-from activesurv_imaging.overhead import load_extrinsics, overhead_fix
+from activesurv_imaging.overhead import load_extrinsics, overhead_fix, overhead_fixes
 
 
 def _seven_numbers(v: Any) -> str | None:
@@ -45,6 +45,7 @@ PARAMS = (
     Param('marker_height', 0.08, 'z of the top marker plane (m)'),
     Param('marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
     Param('frame_id', 'world', 'frame of the fixes'),
+    Param('all_markers', False, 'several objects: every marker of a frame on overhead/fixes'),
 )
 
 
@@ -67,6 +68,12 @@ class OverheadLocatorNode(Node):
         self.counts: Counter[str] = Counter()
         self.last_reason = ''
         self._fix_pub = self.create_publisher(PointStamped, topics.OVERHEAD_FIX, qos.STATE)
+        self.all_markers = bool(v['all_markers'])
+        self._fixes_pub = (
+            self.create_publisher(PoseArray, topics.OVERHEAD_FIXES, qos.STATE)
+            if self.all_markers
+            else None
+        )
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
@@ -89,6 +96,9 @@ class OverheadLocatorNode(Node):
         self.counts['frames'] += 1
         if self.camera is None:
             self.last_reason = 'waiting for camera_info'
+            return
+        if self._fixes_pub is not None:
+            self._all_markers(msg)
             return
         try:
             fix = overhead_fix(
@@ -113,6 +123,39 @@ class OverheadLocatorNode(Node):
         pt.point.x, pt.point.y = (float(c) for c in fix.xy)
         pt.point.z = self.marker_height
         self._fix_pub.publish(pt)
+
+    def _all_markers(self, msg: Image) -> None:
+        """Several objects on the table: every top marker of the frame, as one PoseArray
+        (empty when none: the frame was seen and held nothing)."""
+        if self.camera is None or self._fixes_pub is None:
+            return
+        try:
+            fixes = overhead_fixes(
+                image_to_gray(msg),
+                self.camera,
+                self.T_world_camera,
+                self.marker_height,
+                self.marker_radius,
+            )
+        except VisionErrors as exc:
+            self.counts['bad_images'] += 1
+            self.last_reason = f'bad image: {exc}'
+            return
+        out = PoseArray()
+        out.header.stamp = msg.header.stamp
+        out.header.frame_id = self.frame_id
+        for fix in fixes:
+            if fix.xy is None:
+                self.counts['no_fix'] += 1
+                self.last_reason = fix.reason
+                continue
+            self.counts['fixes'] += 1
+            pose = Pose()
+            pose.position.x, pose.position.y = (float(c) for c in fix.xy)
+            pose.position.z = self.marker_height
+            pose.orientation.w = 1.0
+            out.poses.append(pose)
+        self._fixes_pub.publish(out)
 
     def _publish_diagnostics(self) -> None:
         values: dict[str, Any] = dict(self.counts)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from activesurv_common.geometry import quaternion_from_normal
 from activesurv_common.ros.conversions import sec_to_time
-from activesurv_interfaces.msg import DemandHorizon, DemandPoint
+from activesurv_interfaces.msg import DemandHorizon, DemandPoint, ObjectTrack, ObjectTracks
 from activesurv_prediction.demands import DemandPrediction
-from activesurv_prediction.tracker import MotionSummary, TrackState
+from activesurv_prediction.tracker import MotionSummary, TrackEstimate, TrackState
 
 
 def horizon_to_msg(
@@ -39,4 +39,22 @@ def horizon_to_msg(
         d.normal.x, d.normal.y, d.normal.z = (float(v) for v in p.normal)
         d.velocity.x, d.velocity.y, d.velocity.z = (float(v) for v in p.velocity)
         msg.demands.append(d)
+    return msg
+
+
+def tracks_to_msg(
+    tracks: list[TrackEstimate], stamp: float, frame_id: str, top_height: float
+) -> ObjectTracks:
+    """The overhead tracks at ``stamp`` (positions at the top marker's height)."""
+    msg = ObjectTracks()
+    msg.header.stamp = sec_to_time(stamp)
+    msg.header.frame_id = frame_id
+    for t in tracks:
+        m = ObjectTrack()
+        m.id = int(t.object_id)
+        m.state = ObjectTrack.STATE_CONFIRMED if t.confirmed else ObjectTrack.STATE_TENTATIVE
+        m.position.x, m.position.y, m.position.z = float(t.xy[0]), float(t.xy[1]), top_height
+        m.velocity.x, m.velocity.y = float(t.velocity[0]), float(t.velocity[1])
+        m.covariance_xy = [float(v) for v in t.covariance.reshape(4)]
+        msg.tracks.append(m)
     return msg

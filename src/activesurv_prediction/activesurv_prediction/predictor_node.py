@@ -2,7 +2,9 @@
 
 Subscribes: overhead/fix (geometry_msgs/PointStamped, world; from ``overhead_locator``).
 Publishes: demand_horizon (activesurv_interfaces/DemandHorizon, latched), overhead/track
-    (geometry_msgs/PointStamped, each accepted fix), /diagnostics.
+    (geometry_msgs/PointStamped, each accepted fix), object_tracks
+    (activesurv_interfaces/ObjectTracks: every track's filtered estimate at each fix),
+    /diagnostics.
 Parameters: see ``config/predictor.yaml``.
 """
 
@@ -21,8 +23,8 @@ from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
-from activesurv_interfaces.msg import DemandHorizon
-from activesurv_prediction.conversions import horizon_to_msg
+from activesurv_interfaces.msg import DemandHorizon, ObjectTracks
+from activesurv_prediction.conversions import horizon_to_msg, tracks_to_msg
 from activesurv_prediction.demands import TargetGeometry, demand_source, predict_demands
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.predictor import make_predictor
@@ -120,6 +122,7 @@ class PredictorNode(Node):
             DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED
         )
         self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
+        self._tracks_pub = self.create_publisher(ObjectTracks, topics.OBJECT_TRACKS, qos.STATE)
         self._diag_pub = self.create_publisher(diagnostics.DiagnosticArray, *DIAG)
         self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
         self.create_timer(0.1, self._on_tick)
@@ -159,6 +162,17 @@ class PredictorNode(Node):
             preds = predict_demands(p, self.schedule, self.geometry, self.marker_height, now, h)
         self._horizon_pub.publish(
             horizon_to_msg(preds, state, now, self.frame_id, self.tracker.motion())
+        )
+        # A session numbers its objects at confirmation; an experiment has its tracks.
+        object_id = (
+            self.objects.book.object_id
+            if self.objects is not None
+            else self.tracker.tracks_started
+        )
+        self._tracks_pub.publish(
+            tracks_to_msg(
+                self.tracker.estimates(now, object_id), now, self.frame_id, self.marker_height
+            )
         )
         if self.tracker.manoeuvre:
             self.get_logger().info(f'manoeuvre: the object is {self.tracker.manoeuvres.regime}')

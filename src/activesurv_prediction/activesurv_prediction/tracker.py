@@ -15,12 +15,34 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from activesurv_prediction.base import Predictor, UpdateResult
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.manoeuvre import ManoeuvreDetector
 from activesurv_prediction.predictor import TargetPredictor
+
+
+@dataclass(frozen=True)
+class TrackEstimate:
+    """Where a track puts its object now (the overhead tracks' output, for metrics and views).
+
+    Attributes:
+        object_id: the id its demands carry (0 before confirmation).
+        confirmed: whether the track is confirmed.
+        xy: filtered position (m, world) at the estimate's time.
+        velocity: (m/s).
+        covariance: 2x2 position covariance (m^2).
+    """
+
+    object_id: int
+    confirmed: bool
+    xy: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+
+
+VELOCITY_STEP = 0.01  # s: a track's velocity is its prediction's slope over this step
 
 
 class TrackState(Enum):
@@ -145,6 +167,25 @@ class Tracker:
     def lose(self) -> None:
         self.state = TrackState.LOST
         self.predictor.reset()
+
+    def estimates(self, t: float, object_id: int = 0) -> list[TrackEstimate]:
+        """The track's estimate at ``t`` (at or after its last fix); none without a track.
+        ``object_id``: the id its demands carry (the demand source numbers objects)."""
+        if self.state not in (TrackState.TENTATIVE, TrackState.CONFIRMED):
+            return []
+        if self.predictor.last_time is None:
+            return []
+        t = max(t, self.predictor.last_time)
+        (xy, cov), (xy2, _) = self.predictor.predict_many([t, t + VELOCITY_STEP])
+        return [
+            TrackEstimate(
+                object_id,
+                self.state is TrackState.CONFIRMED,
+                np.asarray(xy, dtype=np.float64),
+                (np.asarray(xy2) - np.asarray(xy)) / VELOCITY_STEP,
+                np.asarray(cov, dtype=np.float64).reshape(2, 2),
+            )
+        ]
 
 
 def fix_statistics(fix_times: list[float], innovations: list[float]) -> dict[str, object]:

@@ -21,8 +21,12 @@ from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
 from activesurv_sim.xytable import ObjectState
 
 
-def object_state_msg(state: ObjectState, stamp: Time, frame_id: str) -> ObjectStateMsg:
+def object_state_msg(
+    state: ObjectState, stamp: Time, frame_id: str, object_id: int = 1, slot: int = 0
+) -> ObjectStateMsg:
     msg = ObjectStateMsg()
+    msg.id = int(object_id) if state.present else 0
+    msg.slot = int(slot)
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     msg.top_marker.x, msg.top_marker.y, msg.top_marker.z = (float(v) for v in state.top)

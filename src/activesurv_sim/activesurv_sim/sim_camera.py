@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,6 +47,7 @@ class ObjectGeometry:
     plate_half_size: float = 0.03
 
 
+EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked
 OBSTACLE_LEVEL = 120.0  # grey fixtures: neither the black plates nor the white markers
 _FACETS = 16  # a cylinder's side as a prism of this many faces
 
@@ -153,10 +155,11 @@ class SimulatedCamera:
         self.geometry = ObjectGeometry() if geometry is None else geometry
         self.noise = SensorNoise() if noise is None else noise
         self.rng = np.random.default_rng(seed)
-        self.objects = TimeSeries(9)
+        self.objects = TimeSeries(9)  # the object (slot 0)
+        self.slots: dict[int, TimeSeries] = {0: self.objects}  # several at once: one per lane
         n_joints = len(mount.joint_names) if isinstance(mount, CameraMount) else 0
         self.joints = TimeSeries(max(n_joints, 1))
-        self._planned: dict[float, list[NDArray[np.float64] | None]] = {}
+        self._planned: dict[float, tuple[dict[int, NDArray[np.float64]], list[Any]]] = {}
         self._ahead: dict[
             float, tuple[NDArray[np.uint8], NDArray[np.float64], NDArray[np.float64]]
         ] = {}
@@ -178,9 +181,16 @@ class SimulatedCamera:
             raise RenderError(f'no stage state near t={t:.3f} s')
         return self.mount.pose_from_joints(q)
 
+    def add_object(self, t: float, state: ArrayLike, slot: int = 0) -> bool:
+        """An object state (9,) at ``t`` in lane ``slot``; False (ignored) if not finite."""
+        series = self.slots.get(slot)
+        if series is None:
+            series = self.slots[slot] = TimeSeries(9)
+        return series.add(t, state)
+
     def covered(self, t: float) -> bool:
         """Object and stage states are known at or after ``t`` (interpolation, no holding)."""
-        latest = [self.objects.latest_time]
+        latest = [series.latest_time for series in self.slots.values()]
         if self.joint_names:
             latest.append(self.joints.latest_time)
         return all(x is not None and x >= t for x in latest)
@@ -208,13 +218,15 @@ class SimulatedCamera:
             Transform(np.eye(3), np.zeros(3)), Scene((marker,)), self.noise, self.rng
         )
 
-    def plan(self, t: float, state: ArrayLike | None = None, q: ArrayLike | None = None) -> None:
-        """The object state (9,) and/or stage joints planned for instant ``t``."""
-        entry = self._planned.setdefault(t, [None, None])
+    def plan(
+        self, t: float, state: ArrayLike | None = None, q: ArrayLike | None = None, slot: int = 0
+    ) -> None:
+        """The object state (9,) of lane ``slot`` and/or stage joints planned for ``t``."""
+        states, joints = self._planned.setdefault(t, ({}, [None]))
         if state is not None:
-            entry[0] = np.asarray(state, dtype=np.float64).reshape(9)
+            states[slot] = np.asarray(state, dtype=np.float64).reshape(9)
         if q is not None:
-            entry[1] = np.asarray(q, dtype=np.float64).reshape(-1)
+            joints[0] = np.asarray(q, dtype=np.float64).reshape(-1)
         if len(self._planned) > 64:  # requests whose instant never came: keep the newest
             for old in sorted(self._planned)[:-64]:
                 del self._planned[old]
@@ -223,10 +235,12 @@ class SimulatedCamera:
         """Render the frame of ``t`` now if its truth is planned; True if a frame is ready."""
         if t in self._ahead:
             return True
-        state, q = self._planned.get(t, (None, None))
+        states, joints = self._planned.get(t, ({}, [None]))
+        q = joints[0]
         static = not isinstance(self.mount, CameraMount)
-        if state is None or (q is None and not static):
+        if set(states) != set(self.slots) or (q is None and not static):
             return False
+        state = np.concatenate([states[k] for k in sorted(self.slots)])
         q_used = np.zeros(0) if static or q is None else q
         self._ahead[t] = (self.render_state(state, q_used), state, q_used)
         return True
@@ -261,6 +275,12 @@ class SimulatedCamera:
         state = self.objects.at(t, hold)
         if state is None:
             raise RenderError(f'no object state near t={t:.3f} s')
+        if len(self.slots) > 1:  # several objects: every lane's (an unknown one is empty)
+            parts = [state]
+            for k in sorted(self.slots)[1:]:
+                other = self.slots[k].at(t, hold)
+                parts.append(EMPTY_LANE if other is None else other)
+            state = np.concatenate(parts)
         if not isinstance(self.mount, CameraMount):
             return state, np.zeros(0)
         q = self.joints.at(t, hold)
@@ -276,7 +296,9 @@ class SimulatedCamera:
             T = self.mount
         s = np.asarray(state, dtype=np.float64)
         if self.scene_of is None:
-            scene = object_scene(s, self.geometry, self.extra)
+            objects = s.reshape(-1, 9)
+            plates = [p for o in objects for p in object_scene(o, self.geometry).plates]
+            scene = Scene((*plates, *self.extra))
         else:
             scene = self.scene_of(s)
             scene = replace(scene, plates=scene.plates + self.extra)

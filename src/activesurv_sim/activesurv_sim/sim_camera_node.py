@@ -106,7 +106,7 @@ class SimCameraNode(Node):
 
     def _on_object(self, msg: ObjectState) -> None:
         t = time_to_sec(msg.header.stamp)
-        if not self.sim.objects.add(t, object_state_vector(msg)):
+        if not self.sim.add_object(t, object_state_vector(msg), int(msg.slot)):
             self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
         else:
             self._on_state(t)
@@ -133,17 +133,19 @@ class SimCameraNode(Node):
             self._ahead(t)  # the truth may be planned already
 
     def _on_planned_object(self, msg: ObjectState) -> None:
-        self._ahead(time_to_sec(msg.header.stamp), state=object_state_vector(msg))
+        self._ahead(
+            time_to_sec(msg.header.stamp), state=object_state_vector(msg), slot=int(msg.slot)
+        )
 
     def _on_planned_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
         if q is not None:
             self._ahead(time_to_sec(msg.header.stamp), q=q)
 
-    def _ahead(self, t: float, state: Any = None, q: Any = None) -> None:
+    def _ahead(self, t: float, state: Any = None, q: Any = None, slot: int = 0) -> None:
         """Plan the truth at ``t``; render its frame now if it is requested and planned."""
         if state is not None or q is not None:
-            self.sim.plan(t, state, q)
+            self.sim.plan(t, state, q, slot)
         if t in self._pending:
             try:
                 self.sim.render_ahead(t)

@@ -48,6 +48,8 @@ PATH_KINDS = (
     'smooth',
 )
 _MARGIN = 0.015  # m from the table's edges
+MAX_AT_ONCE = 4  # lanes the table has room for
+LANE_MARGIN = 0.015  # m: objects in neighbouring lanes stay 30 mm apart at least
 _X0, _X1 = TABLE_RANGE[0][0] + _MARGIN, TABLE_RANGE[0][1] - _MARGIN
 _Y0, _Y1 = TABLE_RANGE[1][0] + 0.03, TABLE_RANGE[1][1] - 0.03
 
@@ -173,6 +175,7 @@ class ObjectPass:
     kind: str
     entered: float
     path: TimedPath
+    slot: int = 0  # its lane on the table (several objects at once: one per lane)
 
     @property
     def left(self) -> float:
@@ -180,16 +183,27 @@ class ObjectPass:
 
 
 class ObjectStream:
-    """Objects entering one after another from ``first_entry`` on, paths drawn from ``seed``.
+    """Objects entering from ``first_entry`` on, paths drawn from ``seed``.
+
+    With ``at_once`` = 1 (the default) the table carries one object at a time: the next enters
+    ``arrival_interval`` s after the previous one entered, but never before it left plus
+    ``gap``. With ``at_once`` = N > 1, up to N objects cross at once, each in a lane of its own
+    (the table's y range cut in N bands, the path drawn for the whole range and narrowed into
+    its band, 15 mm from the band's edges: neighbours stay 30 mm apart). The next object
+    enters ``arrival_interval`` / N s after the previous one, in a free lane (one whose last
+    object left ``gap`` s before), so arrivals overlap; crossings go in both directions,
+    nearer and farther from the cameras.
 
     Args:
         seed: seeds the path kinds and shapes (the same seed, the same stream).
-        arrival_interval: s from one object's entry to the next's (at the earliest).
+        arrival_interval: s from one object's entry to the next's (at the earliest), for one
+            object at a time.
         first_entry: simulated s at which the first object enters.
         kinds: path kinds to draw from (default all of :data:`PATH_KINDS`).
-        gap: s the table stays empty between two objects at least.
+        gap: s a lane stays empty between two objects at least.
         model: the markers relative to the carriage.
         position_error: the rig's table error map, as for :class:`XYTable` (None: exact).
+        at_once: how many objects may be on the table at once (its lanes).
     """
 
     def __init__(
@@ -203,9 +217,12 @@ class ObjectStream:
         acceleration: float = 0.02,
         model: ObjectModel | None = None,
         position_error: Callable[[float, float], Array] | None = None,
+        at_once: int = 1,
     ) -> None:
         if not (math.isfinite(arrival_interval) and arrival_interval > 0.0 and gap >= 0.0):
             raise ConfigError('arrival_interval must be > 0 s and gap >= 0 s')
+        if not 1 <= at_once <= MAX_AT_ONCE:
+            raise ConfigError(f'objects at once must be 1 to {MAX_AT_ONCE}, got {at_once}')
         bad = [k for k in kinds if k not in PATH_KINDS]
         if bad or not kinds:
             raise ConfigError(f'path kinds must be among {PATH_KINDS}, got {list(kinds)}')
@@ -221,14 +238,47 @@ class ObjectStream:
         self.passes: list[ObjectPass] = []
         self._next_entry = first_entry
         self.position_error = position_error
+        self.at_once = at_once
+        self._lane_free = [first_entry] * at_once  # when each lane may take its next object
+
+    def _lane(self, path: TimedPath, slot: int) -> TimedPath:
+        """The path narrowed into lane ``slot`` (y scaled into its band; slower, never
+        faster)."""
+        if self.at_once == 1:
+            return path
+        width = (_Y1 - _Y0) / self.at_once
+        lo = _Y0 + slot * width + LANE_MARGIN
+        y = lo + (path.xy[:, 1] - _Y0) * ((width - 2 * LANE_MARGIN) / (_Y1 - _Y0))
+        return TimedPath(path.t, np.column_stack([path.xy[:, 0], y]))
 
     def _extend(self, t: float) -> None:
         while not self.passes or self.passes[-1].entered <= t:
             kind = str(self.rng.choice(self.kinds))
             path = random_path(kind, self.rng, self.speed, self.acceleration)
-            p = ObjectPass(len(self.passes) + 1, kind, self._next_entry, path)
+            if self.at_once == 1:
+                p = ObjectPass(len(self.passes) + 1, kind, self._next_entry, path)
+                self._next_entry = max(p.entered + self.arrival_interval, p.left + self.gap)
+            else:
+                slot = int(np.argmin(self._lane_free))
+                entry = max(self._next_entry, self._lane_free[slot])
+                p = ObjectPass(len(self.passes) + 1, kind, entry, self._lane(path, slot), slot)
+                self._lane_free[slot] = p.left + self.gap
+                self._next_entry = entry + self.arrival_interval / self.at_once
             self.passes.append(p)
-            self._next_entry = max(p.entered + self.arrival_interval, p.left + self.gap)
+
+    def passes_at(self, t: float) -> list[ObjectPass]:
+        """Every object on the table at ``t``."""
+        self._extend(t)
+        return [p for p in self.passes if p.entered <= t <= p.left]
+
+    def slot_state(self, slot: int, t: float) -> tuple[int, ObjectState]:
+        """The object in lane ``slot`` at ``t`` (its id, 0 and parked when the lane is
+        empty)."""
+        self._extend(t)
+        for p in reversed(self.passes):
+            if p.slot == slot and p.entered <= t <= p.left:
+                return p.id, self._state_of(p, t)
+        return 0, self._state_of(None, t)
 
     def pass_at(self, t: float) -> ObjectPass | None:
         """The object on the table at ``t``, if any."""
@@ -240,7 +290,9 @@ class ObjectStream:
 
     def state(self, t: float) -> ObjectState:
         """The object's state at ``t`` (parked out of view, not moving, when there is none)."""
-        p = self.pass_at(t)
+        return self._state_of(self.pass_at(t), t)
+
+    def _state_of(self, p: ObjectPass | None, t: float) -> ObjectState:
         if p is None:
             xy, v = PARKED, np.zeros(2)
         else:
@@ -279,6 +331,7 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
             acceleration=accel,
             model=model,
             position_error=error,
+            at_once=int(p.get('objects_at_once', 1)),
         )
     path = named_path(
         str(p['path_type']), list(p['path_points']), speed, accel, str(p['csv_file'])

@@ -39,7 +39,7 @@ from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg
 from activesurv_sim.errors import SimError
-from activesurv_sim.stream import PATH_KINDS, table_from_parameters
+from activesurv_sim.stream import PATH_KINDS, ObjectStream, table_from_parameters
 from activesurv_sim.xytable import XYTable
 from activesurv_stages.errors import StageError
 
@@ -73,6 +73,7 @@ PARAMS = (
     Param('stream_seed', 0, "stream: seed of the objects' paths"),
     Param('arrival_interval', 30.0, "stream: s from one object's entry to the next", above=0.0),
     Param('path_kinds', list(PATH_KINDS), 'stream: path kinds to draw from'),
+    Param('objects_at_once', 1, 'stream: objects on the table at once (lanes)', minimum=1),
     Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
 )
 
@@ -153,15 +154,30 @@ class XYTableNode(Node):
         if self._clock_pub is not None and t > self._last_clock:
             self._clock_pub.publish(Clock(clock=stamp))  # simulated time never runs back
             self._last_clock = t
-        self._pub.publish(object_state_msg(self.table.state(t), stamp, self.frame_id))
+        for msg in self._states(t, stamp):
+            self._pub.publish(msg)
+
+    def _states(self, t: float, stamp: Any) -> list[ObjectStateMsg]:
+        """The object states at ``t``: one, or one per lane with several objects at once."""
+        table = self.table
+        if isinstance(table, ObjectStream) and table.at_once > 1:
+            out = []
+            for slot in range(table.at_once):
+                oid, state = table.slot_state(slot, t)
+                out.append(object_state_msg(state, stamp, self.frame_id, oid, slot))
+            return out
+        if isinstance(table, ObjectStream):
+            p = table.pass_at(t)
+            oid = p.id if p is not None else 0
+            return [object_state_msg(table.state(t), stamp, self.frame_id, oid)]
+        return [object_state_msg(table.state(t), stamp, self.frame_id)]
 
     def _on_request(self, msg: CaptureRequest) -> None:
         t = time_to_sec(msg.demand_instant)
         if t in self._triggers or not t > self.sim_time():
             return  # already scheduled (or a request replayed after its instant)
-        self._planned_pub.publish(
-            object_state_msg(self.table.state(t), sec_to_time(t), self.frame_id)
-        )
+        for msg in self._states(t, sec_to_time(t)):
+            self._planned_pub.publish(msg)
         if not self.publish_clock:
             # On someone else's clock: a simulated-time timer fires at its first tick >= t.
             delay = t - self.sim_time()

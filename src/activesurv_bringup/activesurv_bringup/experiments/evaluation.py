@@ -192,7 +192,10 @@ def results_document(
     system: str,
     records: Sequence[DemandRecord],
     extra: dict[str, Any] | None = None,
+    tracking: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
+    """An experiment's results; ``tracking``: the overhead tracks' figures
+    (:func:`activesurv_bringup.experiments.tracking.track_metrics`)."""
     doc: dict[str, Any] = {
         'set': set_name,
         'system': system,
@@ -200,6 +203,14 @@ def results_document(
     }
     if extra:
         doc.update(extra)
+    doc['summary'] = {
+        'demands': len(records),
+        'ok': sum(1 for r in records if r.status == 'ok'),
+        'max_objects_at_once': None,
+        'id_switches': None,
+        'gospa_mean': None,
+        **(tracking or {}),
+    }
     return doc
 
 

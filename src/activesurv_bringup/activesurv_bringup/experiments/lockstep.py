@@ -31,6 +31,7 @@ from activesurv_bringup.experiments.evaluation import (
 )
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind, imager_injection
+from activesurv_bringup.experiments.tracking import Snapshot
 from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
@@ -76,6 +77,7 @@ def run_lockstep(
     faults: Sequence[Fault] = (),
     progress: Progress | None = None,
     plan_log: list[tuple[int, tuple[str, ...]]] | None = None,
+    track_log: list[tuple[Snapshot, Snapshot]] | None = None,
 ) -> list[DemandRecord]:
     """Run one experiment; returns one record per demand instant.
 
@@ -84,6 +86,8 @@ def run_lockstep(
         faults: camera faults to inject.
         progress: called as ``progress(demand_number, demands, sim_time)`` after each demand.
         plan_log: if given, receives (demand index, assigned cameras) of every capture.
+        track_log: if given, receives the overhead tracks and the truth at every frame
+            (:func:`activesurv_bringup.experiments.tracking.track_metrics`).
     """
     cfg = exp.config
     rng = np.random.default_rng(exp.seed)
@@ -167,6 +171,15 @@ def run_lockstep(
         if fix.xy is not None:
             tracker.update(t, fix.xy)
         tracker.check_timeout(t)
+        if track_log is not None:
+            seen = tracker.estimates(t, tracker.tracks_started)
+            present = tracker.workspace.contains(state[:2])  # on the table, not parked
+            track_log.append(
+                (
+                    Snapshot(t, tuple((e.object_id, *map(float, e.xy)) for e in seen)),
+                    Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
+                )
+            )
         horizon: list[Demand] = []
         if tracker.state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
             for p in predict_demands(

@@ -39,6 +39,7 @@ from activesurv_bringup.experiments.records import (
     run_obstacles,
 )
 from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
+from activesurv_bringup.experiments.tracking import TrackRecorder
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_liveview.scene import plot_scene
@@ -46,6 +47,7 @@ from activesurv_recording.bagio import read_bag, run_info
 
 TOPICS = {
     '/object_state',
+    '/object_tracks',
     '/capture_request',
     '/marker_observations',
     '/target_estimate',
@@ -69,6 +71,7 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
     observations: dict[int, list[Any]] = {}
     estimates: dict[int, tuple[Any, int]] = {}
     predicted = PredictionLog()
+    tracked = TrackRecorder()
     for m in read_bag(bag, TOPICS):
         if m.topic == '/demand_horizon':
             made = msg_stamp(m.msg)
@@ -80,6 +83,9 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
                 msg_stamp(m.msg),
                 np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)],
             )
+            tracked.on_truth(msg_stamp(m.msg), m.msg)
+        elif m.topic == '/object_tracks':
+            tracked.on_tracks(msg_stamp(m.msg), m.msg)
         elif m.topic == '/capture_request':
             requests.setdefault(int(m.msg.demand_index), m.msg)
         elif m.topic == '/marker_observations':
@@ -125,6 +131,7 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             'truth': info.get('truth') if info.get('mode') == 'hardware' else 'simulator',
             **({'hardware': info['hardware']} if 'hardware' in info else {}),
         },
+        tracked.metrics() if not truthless else None,
     )
     if truthless:  # nothing measured the object: no truth columns at all
         for row in doc['demands']:

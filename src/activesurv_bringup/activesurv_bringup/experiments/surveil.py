@@ -41,6 +41,7 @@ from activesurv_bringup.experiments.records import (
     msg_vector,
     run_obstacles,
 )
+from activesurv_bringup.experiments.tracking import TrackRecorder, track_metrics
 from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.occlusion import obstacles_to_list
 from activesurv_common.sensor_model import SensorModel
@@ -340,8 +341,10 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     object_of: dict[int, int] = {}
     confirmed: dict[int, float] = {}
     end = 0.0
+    tracked = TrackRecorder()
     topics = {
         '/object_state',
+        '/object_tracks',
         '/capture_request',
         '/marker_observations',
         '/target_estimate',
@@ -353,6 +356,9 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             t = msg_stamp(m.msg)
             truth.add(t, np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)])
             present.add(t, [1.0 if m.msg.in_workspace else 0.0])
+            tracked.on_truth(t, m.msg)
+        elif m.topic == '/object_tracks':
+            tracked.on_tracks(msg_stamp(m.msg), m.msg)
         elif m.topic == '/demand_horizon':
             for d in m.msg.demands:
                 oid = int(d.object_id)
@@ -410,6 +416,16 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             }
         )
     lat = [d['latency'] for d in demands if d.get('latency') is not None]
+
+    def truth_id(t: float) -> int:
+        p = stream.pass_at(t - origin)
+        return 0 if p is None else int(p.id)
+
+    tracking = (
+        tracked.metrics(truth_id)
+        if 'hardware' not in info or info.get('truth')
+        else track_metrics([], [])
+    )
     return {
         'mode': 'surveil',
         'system': info.get('system'),
@@ -428,6 +444,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             'ok': sum(1 for d in demands if d['status'] == 'ok'),
             'objects': len(objects),
             'latency_median_ms': 1e3 * statistics.median(lat) if lat else None,
+            **tracking,
         },
     }
 

@@ -14,7 +14,9 @@ CLOCK = '/clock'
 PLANNED_OBJECT_STATE = 'sim/planned_object_state'
 # Prediction
 OVERHEAD_FIX = 'overhead/fix'
+OVERHEAD_FIXES = 'overhead/fixes'  # several objects: every top marker of a frame
 OVERHEAD_TRACK = 'overhead/track'
+OBJECT_TRACKS = 'object_tracks'
 DEMAND_HORIZON = 'demand_horizon'
 # Dispatch
 DISPATCH_PLAN = 'dispatch_plan'

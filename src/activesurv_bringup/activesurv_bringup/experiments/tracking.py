@@ -1,0 +1,145 @@
+"""How well the overhead tracks follow the objects: GOSPA and identity switches.
+
+The overhead tracks (``object_tracks``: each track's filtered position at each overhead fix)
+are compared with the truth (the objects' top markers, present while on the table) at the
+tracks' own instants:
+
+* ``gospa_mean`` (m): the generalised optimal sub-pattern assignment metric (Rahmathullah,
+  Garcia-Fernandez, Svensson 2017; alpha = 2, p = 1, cut-off ``c`` = 50 mm, with a switching
+  penalty of ``c`` / 2), averaged over the instants, from Stone Soup's ``GOSPAMetric``: a
+  position error of each assigned pair, ``c`` / 2 for each missed object or false track;
+* ``id_switches``: how often an object's track identity (the id its demands carry) changed
+  while it was tracked, an object matched to the nearest confirmed track within ``c``;
+* ``max_objects_at_once``: the most objects on the table at one instant.
+
+Tentative tracks (no id yet) count as tracks for GOSPA, not for identities.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+CUTOFF = 0.05  # m: GOSPA's c, and the gate of an identity match
+EPOCH = dt.datetime(2000, 1, 1)
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Objects (truth) or tracks at one instant: (id, x, y) each."""
+
+    t: float
+    items: tuple[tuple[int, float, float], ...]
+
+
+def track_metrics(tracks: Sequence[Snapshot], truth: Sequence[Snapshot]) -> dict[str, Any]:
+    """GOSPA mean, identity switches and the most objects at once (see the module).
+
+    ``truth`` is taken at the same instants as ``tracks`` (one snapshot each, same order);
+    with no truth (a hardware run without a table controller) GOSPA and switches are None.
+    """
+    most = max((len(s.items) for s in truth), default=0)
+    if not truth or not tracks:
+        return {'max_objects_at_once': most or None, 'id_switches': None, 'gospa_mean': None}
+    return {
+        'max_objects_at_once': most,
+        'id_switches': id_switches(tracks, truth),
+        'gospa_mean': gospa_mean(tracks, truth),
+    }
+
+
+def gospa_mean(tracks: Sequence[Snapshot], truth: Sequence[Snapshot]) -> float:
+    """Mean GOSPA (m) over the instants, from Stone Soup (imported here: it is heavy)."""
+    from stonesoup.measures import Euclidean
+    from stonesoup.metricgenerator.ospametric import GOSPAMetric
+    from stonesoup.types.state import State
+
+    metric = GOSPAMetric(
+        c=CUTOFF, p=1, measure=Euclidean(mapping=(0, 1)), switching_penalty=CUTOFF / 2
+    )
+    measured, measured_ids, truths, truth_ids = [], [], [], []
+    fresh = -1  # a tentative track has no id: each is its own
+    for snap_m, snap_t in zip(tracks, truth, strict=True):
+        when = EPOCH + dt.timedelta(seconds=snap_m.t)
+        for i, x, y in snap_m.items:
+            measured.append(State(np.array([[x], [y]]), timestamp=when))
+            if i == 0:
+                fresh -= 1
+            measured_ids.append(i if i != 0 else fresh)
+        for i, x, y in snap_t.items:
+            truths.append(State(np.array([[x], [y]]), timestamp=when))
+            truth_ids.append(i)
+    if not measured and not truths:
+        return 0.0
+    result = metric.compute_over_time(measured, measured_ids, truths, truth_ids)
+    values = [float(m.value['distance']) for m in result.value]
+    return float(np.mean(values)) if values else 0.0
+
+
+def id_switches(tracks: Sequence[Snapshot], truth: Sequence[Snapshot]) -> int:
+    """Changes of the confirmed track id matched to each object (nearest within the gate)."""
+    last: dict[int, int] = {}
+    switches = 0
+    for snap_m, snap_t in zip(tracks, truth, strict=True):
+        confirmed = [(i, x, y) for i, x, y in snap_m.items if i != 0]
+        for oid, x, y in snap_t.items:
+            if not confirmed:
+                continue
+            d = [float(np.hypot(x - tx, y - ty)) for _, tx, ty in confirmed]
+            j = int(np.argmin(d))
+            if d[j] > CUTOFF:
+                continue
+            tid = confirmed[j][0]
+            if oid in last and last[oid] != tid:
+                switches += 1
+            last[oid] = tid
+    return switches
+
+
+class TrackRecorder:
+    """Collects overhead tracks and the truth from a bag's messages, for :func:`track_metrics`.
+
+    Feed it ``/object_state`` (:meth:`on_truth`) and ``/object_tracks`` (:meth:`on_tracks`)
+    messages in any order; :meth:`metrics` matches each track message with the truth at its
+    stamp (held up to 0.5 s), the object's id given by ``truth_id(t)`` (1 by default).
+    """
+
+    def __init__(self) -> None:
+        self.truth: list[tuple[float, float, float, bool]] = []
+        self.tracks: list[tuple[float, tuple[tuple[int, float, float], ...]]] = []
+
+    def on_truth(self, t: float, msg: Any) -> None:
+        p = msg.top_marker
+        self.truth.append((t, float(p.x), float(p.y), bool(msg.in_workspace)))
+
+    def on_tracks(self, t: float, msg: Any) -> None:
+        items = tuple((int(k.id), float(k.position.x), float(k.position.y)) for k in msg.tracks)
+        self.tracks.append((t, items))
+
+    def metrics(self, truth_id: Any = None) -> dict[str, Any]:
+        if not self.truth:
+            return track_metrics([], [])
+        truth = sorted(self.truth)
+        times = np.array([r[0] for r in truth])
+        pairs_m, pairs_t = [], []
+        for t, items in sorted(self.tracks):
+            j = int(np.searchsorted(times, t))
+            near = [i for i in (j - 1, j) if 0 <= i < len(times)]
+            i = min(near, key=lambda i: abs(times[i] - t))
+            if abs(times[i] - t) > 0.5:
+                continue
+            _, x, y, present = truth[i]
+            oid = 1 if truth_id is None else int(truth_id(t))
+            pairs_m.append(Snapshot(t, items))
+            pairs_t.append(Snapshot(t, ((oid, x, y),) if present and oid else ()))
+        most = max(
+            (1 for r in truth if r[3]),
+            default=0,
+        )
+        out = track_metrics(pairs_m, pairs_t)
+        out['max_objects_at_once'] = most
+        return out

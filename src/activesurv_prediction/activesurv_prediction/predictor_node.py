@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import PointStamped, PoseArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -27,6 +28,7 @@ from activesurv_interfaces.msg import DemandHorizon, ObjectTracks
 from activesurv_prediction.conversions import horizon_to_msg, tracks_to_msg
 from activesurv_prediction.demands import TargetGeometry, demand_source, predict_demands
 from activesurv_prediction.errors import PredictionError
+from activesurv_prediction.multi import MultiTracker
 from activesurv_prediction.predictor import make_predictor
 from activesurv_prediction.tracker import Tracker, TrackState, Workspace, fix_statistics
 
@@ -76,6 +78,12 @@ PARAMS = (
     Param('side_marker_offset', [0.0, -0.03, -0.03], 'side minus top marker centre (m)'),
     Param('side_marker_normal', [0.0, -1.0, 0.0], 'side marker normal (world)'),
     Param('frame_id', 'world', 'frame of the horizon'),
+    Param(
+        'objects_at_once',
+        1,
+        'continuous: objects expected at once; > 1 tracks every marker of overhead/fixes',
+        minimum=1,
+    ),
 )
 
 
@@ -124,7 +132,27 @@ class PredictorNode(Node):
         self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
         self._tracks_pub = self.create_publisher(ObjectTracks, topics.OBJECT_TRACKS, qos.STATE)
         self._diag_pub = self.create_publisher(diagnostics.DiagnosticArray, *DIAG)
-        self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
+        self.multi: MultiTracker | None = None
+        if int(v['objects_at_once']) > 1:
+            if self.objects is None:
+                raise PredictionError('several objects at once need demand_mode interval or lines')
+            book = self.objects.book
+            self.multi = MultiTracker(
+                str(v['model']),
+                float(v['measurement_std']),
+                float(v['jerk_std']),
+                int(v['confirm_fixes']),
+                Workspace(*[float(x) for x in v['workspace']]),
+                float(v['lost_timeout']),
+                book.interval,
+                book.lines,
+                book.region,
+                book.freeze,
+                int(v['objects_at_once']),
+            )
+            self.create_subscription(PoseArray, topics.OVERHEAD_FIXES, self._on_fixes, qos.STATE)
+        else:
+            self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
         self.create_timer(0.1, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
 
@@ -147,6 +175,29 @@ class PredictorNode(Node):
         if math.isfinite(result.mahalanobis2):
             self._innovations.append(result.mahalanobis2)
         self._publish_horizon(t)
+
+    def _on_fixes(self, msg: PoseArray) -> None:
+        """Several objects: every top marker of one overhead frame."""
+        assert self.multi is not None
+        t = time_to_sec(msg.header.stamp)
+        xy = [np.array([p.position.x, p.position.y], dtype=np.float64) for p in msg.poses]
+        good = [v for v in xy if np.all(np.isfinite(v))]
+        self._fixes += len(good)
+        self._bad_fixes += len(xy) - len(good)
+        self._fix_times.append(t)
+        for text in self.multi.update(t, good):
+            self.get_logger().info(text)
+        self._publish_multi(t)
+
+    def _publish_multi(self, now: float) -> None:
+        assert self.multi is not None
+        m = self.multi
+        preds = m.horizon(now, self.horizon, self.geometry, self.marker_height)
+        motion = replace(m.motion(), manoeuvre_count=m.manoeuvre_count())
+        self._horizon_pub.publish(horizon_to_msg(preds, m.state(), now, self.frame_id, motion))
+        self._tracks_pub.publish(
+            tracks_to_msg(m.estimates(now), now, self.frame_id, self.marker_height)
+        )
 
     def _publish_horizon(self, now: float) -> None:
         state = self.tracker.state
@@ -181,6 +232,13 @@ class PredictorNode(Node):
             self._last_state = state
 
     def _on_tick(self) -> None:
+        if self.multi is not None:
+            events = self.multi.check_timeout(self._now())
+            for text in events:
+                self.get_logger().info(text)
+            if events:
+                self._publish_multi(self._now())
+            return
         if self.tracker.check_timeout(self._now()):
             self.get_logger().warning('track lost: object not seen for too long')
             self._publish_horizon(self._now())
@@ -197,6 +255,15 @@ class PredictorNode(Node):
             motion=self.tracker.manoeuvres.regime or '-',
             manoeuvres=self.tracker.manoeuvres.count,
         )
+        if self.multi is not None:
+            state = self.multi.state()
+            values.update(
+                track_state=state.name,
+                tracks=len(self.multi.tracks),
+                confirmed=sum(1 for k in self.multi.tracks if k.confirmed),
+                objects_seen=self.multi.objects,
+                manoeuvres=self.multi.manoeuvre_count(),
+            )
         level = diagnostics.OK if state is TrackState.CONFIRMED else diagnostics.WARN
         s = diagnostics.status(
             'activesurv/predictor', 'predictor', f'track {state.name}', values, level

@@ -155,6 +155,26 @@ def obstacles_to_list(obstacles: Iterable[Obstacle]) -> list[dict[str, Any]]:
     return [obstacle_to_dict(o) for o in obstacles]
 
 
+PLATE_THICKNESS = 0.006  # m: a marker plate as a solid
+
+
+def plate_box(centre: ArrayLike, normal: ArrayLike, half_size: float) -> Box:
+    """The axis-aligned box around a square plate of ``half_size`` centred at ``centre`` with
+    a horizontal edge (a marker plate of another object, standing in the way)."""
+    c = np.asarray(centre, dtype=np.float64).reshape(3)
+    n = np.asarray(normal, dtype=np.float64).reshape(3)
+    n = n / max(float(np.linalg.norm(n)), 1e-12)
+    x = np.cross([0.0, 0.0, 1.0], n)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    y = np.cross(n, x)
+    extent = half_size * (np.abs(x) + np.abs(y)) + 0.5 * PLATE_THICKNESS * np.abs(n)
+    size = 2.0 * extent
+    return Box(
+        (float(c[0]), float(c[1]), float(c[2])),
+        (float(size[0]), float(size[1]), float(size[2])),
+    )
+
+
 def _box_interval(a: Array, d: Array, low: Array, high: Array) -> tuple[Array, Array]:
     """Per segment, the parameter interval [s0, s1] inside the box (slab method)."""
     s0 = np.full(len(a), -np.inf)

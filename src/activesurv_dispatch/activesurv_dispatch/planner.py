@@ -46,7 +46,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_common.occlusion import Obstacle, sight_blocked
+from activesurv_common.occlusion import Obstacle, plate_box, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
     VIEW_SIGMAS,
@@ -173,6 +173,8 @@ class DispatchPlanner:
         self._manoeuvre = False
         self.excluded: set[str] = set()  # cameras judged dead: not dispatched
         self._closed: set[int] = set()  # demands whose capture request has gone out
+        self._horizon: list[Demand] = []
+        self._occluders: dict[int, tuple[Obstacle, ...]] = {}
 
     # -- bookkeeping -------------------------------------------------------------------------
     def serviced(self, index: int) -> None:
@@ -211,8 +213,28 @@ class DispatchPlanner:
         return bool(sight_blocked(centre, demand.position, occluders, radius)[0])
 
     def occluders(self, demand: Demand) -> tuple[Obstacle, ...]:
-        """What may stand between a camera and ``demand``'s marker: the cell's obstacles."""
-        return self.setup.obstacles
+        """What may stand between a camera and ``demand``'s marker: the cell's obstacles and
+        the other objects on the table where they are predicted at its instant (their marker
+        plates, from their own demands on the horizon, moved along their velocity)."""
+        cached = self._occluders.get(demand.index)
+        if cached is not None:
+            return cached
+        out = list(self.setup.obstacles)
+        if demand.object_id:
+            nearest: dict[int, Demand] = {}
+            for d in self._horizon:
+                if d.object_id and d.object_id != demand.object_id:
+                    best = nearest.get(d.object_id)
+                    if best is None or abs(d.time - demand.time) < abs(best.time - demand.time):
+                        nearest[d.object_id] = d
+            for d in nearest.values():
+                p = d.position
+                if d.velocity is not None:
+                    p = p + d.velocity * (demand.time - d.time)
+                out.append(plate_box(p, d.normal, self.setup.object_half_size))
+        result = tuple(out)
+        self._occluders[demand.index] = result
+        return result
 
     # -- ranking -----------------------------------------------------------------------------
     def _can_ever_see(self, sensor: Sensor, demand: Demand) -> bool:
@@ -329,6 +351,8 @@ class DispatchPlanner:
 
         Cameras missing from ``joints`` (no stage state yet) or excluded are not dispatched.
         """
+        self._horizon = list(demands)
+        self._occluders = {}
         cams = [c for c in self.sensors if c in joints and c not in self.excluded]
         horizon = sorted(
             (d for d in demands if d.index not in self._serviced and d.time > now),

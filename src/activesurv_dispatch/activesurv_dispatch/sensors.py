@@ -108,6 +108,7 @@ class Setup:
     marker_radius: float
     motion: MotionClass
     obstacles: tuple[Obstacle, ...] = ()  # fixed solids of the cell (occlusion, eq. 1)
+    object_half_size: float = 0.03  # m: half side of an object's marker plates (occluders)
 
     def sensor(self, camera_id: str) -> Sensor:
         for s in self.sensors:

@@ -5,6 +5,7 @@ overhead frame taken at ``capture_lead`` before the instant."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.planner import Demand, DispatchPlanner, Role
@@ -68,3 +69,31 @@ def test_a_capture_request_waits_for_the_plan_on_the_frame_at_its_lead() -> None
     e.set_horizon([demand], 1.15, stamp=1.1)
     assert not e.tick(1.25).captures
     assert [c.demand.index for c in e.tick(1.3).captures] == [0]
+
+
+def test_another_object_in_front_of_the_marker_blocks_the_cameras_behind_it() -> None:
+    """Object 2's plate, predicted between the cameras and object 1's marker at its instant,
+    takes away the visibility of the cameras whose line of sight it cuts (eq. 1, occluded)."""
+    setup = load_setup(motion='fast')
+    planner = DispatchPlanner(setup, SensorModel.load(), k=3)
+    joints = {c: q.copy() for c, q in setup.initial.items()}
+    mine = Demand(0, 2.0, np.array([0.25, 0.10, 0.05]), NORMAL, COV, object_id=1)
+    other = Demand(
+        1,
+        2.5,
+        np.array([0.25, 0.01, 0.05]),
+        NORMAL,
+        COV,
+        object_id=2,
+        velocity=np.array([0.0, 0.04, 0.0]),  # at 2.0 s it is at y = -0.01 ... 0.03
+    )
+    alone = dict(planner.rank(mine, list(joints), joints, 0.0))
+    planner.plan(0.0, [mine, other], joints)
+    crowded = dict(planner.rank(mine, list(joints), joints, 0.0))
+    lost = [c for c in joints if alone[c].visibility > 0.0 and crowded[c].visibility == 0.0]
+    assert lost, 'some camera looked through where object 2 stands'
+    assert all(crowded[c].visibility <= alone[c].visibility + 1e-9 for c in joints)
+    # The occluder is where object 2 will be at object 1's instant, not where it was seen.
+    (box,) = planner.occluders(mine)
+    assert box.centre[1] == pytest.approx(0.01 + 0.04 * (2.0 - 2.5))
+    assert planner.occluders(other)[0].centre[1] == pytest.approx(0.10)

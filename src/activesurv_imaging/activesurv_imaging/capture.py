@@ -68,6 +68,8 @@ class ImagerConfig:
             publish (the simulated ones do): a replay then measures with the same state.
         obstacles: the cell's solids: a marker not found (or rejected) behind one is reported
             as occluded.
+        several_objects: several objects at once: of the markers in view, measure the one
+            nearest the demand's predicted position (15 mm at most), never another's.
     """
 
     camera_id: str
@@ -84,6 +86,7 @@ class ImagerConfig:
     exposure_delay: float = 0.0
     motion_correction: bool = True
     obstacles: tuple[Obstacle, ...] = ()
+    several_objects: bool = False
 
     def __post_init__(self) -> None:
         if self.trigger not in TRIGGERS:
@@ -272,6 +275,7 @@ class CaptureCore(Generic[F]):
             stamp,
             r.prior_normal,
             c.inject_flip,
+            r.position if c.several_objects else None,
         )
         obs = replace(obs, frame_offset=stamp - r.demand_time)
         if (

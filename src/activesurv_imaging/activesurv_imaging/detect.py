@@ -163,6 +163,7 @@ def detect_marker_detailed(
     config: DetectorConfig | None = None,
     fitter: Fitter | None = None,
     near: ArrayLike | None = None,
+    near_gate: float | None = None,
 ) -> Detection:
     """Detect the marker and say why not when there is none.
 
@@ -171,8 +172,9 @@ def detect_marker_detailed(
         config: detector limits.
         fitter: ellipse fitter for the boundary points (default: the weighted fit of eq. 3-4);
             the benchmark swaps in OpenCV's fitters here.
-        near: (u, v) where the marker is expected (several objects in view): of several
-            markers, the one nearest there (within ``near_gate`` px); None: one marker or none.
+        near: (u, v) where the marker is expected (several objects in view): the marker
+            nearest there, if within ``near_gate`` px (default the config's); None: one
+            marker or none.
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
@@ -183,15 +185,16 @@ def detect_marker_detailed(
     if isinstance(found, Detection):
         return found
     accepted, reasons, candidates = found
-    if len(accepted) > 1 and near is not None:
+    if accepted and near is not None:
+        gate = cfg.near_gate if near_gate is None else near_gate
         uv = np.asarray(near, dtype=np.float64).reshape(2)
         d = [float(np.hypot(*(c.center - uv))) for _, c in accepted]
         j = int(np.argmin(d))
-        if d[j] > cfg.near_gate:
+        if d[j] > gate:
             return Detection(
                 DetectionStatus.REJECTED,
-                f'{len(accepted)} markers in view, none within {cfg.near_gate:.0f} px of where '
-                f'the demanded one should be ({uv[0]:.0f}, {uv[1]:.0f})',
+                f'{len(accepted)} marker(s) in view, none within {gate:.0f} px of where the '
+                f"demanded one should be ({uv[0]:.0f}, {uv[1]:.0f}): another object's",
                 candidates=candidates,
             )
         accepted = [accepted[j]]

@@ -62,6 +62,7 @@ PARAMS = (
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
     Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
+    Param('several_objects', False, 'measure the marker nearest the predicted one of several'),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
     Param('inject_flip', False, 'fault: take the wrong circle pose'),

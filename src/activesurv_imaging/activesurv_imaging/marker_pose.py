@@ -70,6 +70,7 @@ def measure_marker(
     config: DetectorConfig | None = None,
     near: ArrayLike | None = None,
     detection: Detection | None = None,
+    near_gate: float | None = None,
 ) -> MarkerMeasurement:
     """Measure the marker pose in one image.
 
@@ -82,14 +83,19 @@ def measure_marker(
             the camera more directly.
         fitter: ellipse fitter (default: the weighted fit of eq. 3-4).
         config: detector limits.
-        near: (u, v) where the marker should be, to pick it among several in view.
+        near: (u, v) where the marker should be, to pick it among several in view (within
+            ``near_gate`` px).
         detection: the marker's detection when already made (several markers: each in turn).
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
     """
     fit: Fitter = fit_ellipse if fitter is None else fitter
-    det = detect_marker_detailed(image, config, fit, near) if detection is None else detection
+    det = (
+        detect_marker_detailed(image, config, fit, near, near_gate)
+        if detection is None
+        else detection
+    )
     if det.status is not DetectionStatus.OK or det.ellipse is None:
         status = (
             MeasurementStatus.NOT_FOUND

@@ -65,6 +65,9 @@ def failed(
     return Observation(camera_id, demand_index, stamp, status, reason, camera_pose=camera_pose)
 
 
+NEAR_GATE = 0.015  # m: a marker farther than this from its prediction is another object's
+
+
 def observe_marker(
     image: ArrayLike,
     camera: CameraModel,
@@ -76,10 +79,13 @@ def observe_marker(
     stamp: float,
     prior_normal_world: ArrayLike | None = None,
     wrong_solution: bool = False,
+    prior_position_world: ArrayLike | None = None,
 ) -> Observation:
     """Measure the marker in ``image`` and express it in the world frame with its covariance.
 
     ``wrong_solution`` takes the other of the two circle poses (fault injection).
+    ``prior_position_world``: where the marker is predicted; of several markers in view
+    (several objects), the one nearest its projection is measured.
     """
     prior = None
     if prior_normal_world is not None:
@@ -87,8 +93,14 @@ def observe_marker(
             prior = T_world_camera.inverse().rotate(unit(prior_normal_world, 'prior normal'))
         except VisionErrors:
             prior = None  # a zero or NaN prior: fall back to the frontal choice
+    near, gate = None, None
+    if prior_position_world is not None:
+        p = T_world_camera.inverse().apply(np.asarray(prior_position_world, dtype=np.float64))
+        if np.all(np.isfinite(p)) and p[2] > 1e-6:
+            near = camera.project(p[None, :])[0]
+            gate = NEAR_GATE * camera.fx / float(p[2])
     try:
-        m = measure_marker(image, camera, radius, prior)
+        m = measure_marker(image, camera, radius, prior, near=near, near_gate=gate)
     except VisionErrors as exc:
         return failed(
             camera_id,

@@ -176,7 +176,10 @@ def run_lockstep(
             present = tracker.workspace.contains(state[:2])  # on the table, not parked
             track_log.append(
                 (
-                    Snapshot(t, tuple((e.object_id, *map(float, e.xy)) for e in seen)),
+                    Snapshot(
+                        t,
+                        tuple((e.object_id, float(e.xy[0]), float(e.xy[1])) for e in seen),
+                    ),
                     Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
                 )
             )

@@ -116,7 +116,12 @@ def session(args: argparse.Namespace) -> None:
         keep_bags=args.keep_bags,
         system=args.system,
         seed=args.seed,
+        objects_at_once=args.objects_at_once,
     )
+    if args.objects_at_once > 1 and getattr(args, 'hardware', None) is not None:
+        raise ConfigError(
+            '--objects-at-once > 1 needs the simulator: a real xy table carries one object'
+        )
 
 
 def controllers(texts: list[str]) -> dict[str, str]:

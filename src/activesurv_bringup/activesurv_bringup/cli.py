@@ -14,6 +14,7 @@ Commands:
         [--hosts {single,netns}]
         [--dds-profile {large-images,PATH.xml}]
     activesurv surveil --out DIR [--duration S] [--rtf X] [--seed N] [--arrival-interval S]
+        [--objects-at-once N]
         [--demand-interval S] [--demand-at x=X ...] [--max-bag-duration S]
         [--system {static,medium,fast}]
     activesurv report RUN_DIR_OR_BAG
@@ -152,6 +153,13 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     sv.add_argument(
         '--demand-interval', type=float, default=2.0, help="s between an object's demands"
+    )
+    sv.add_argument(
+        '--objects-at-once',
+        type=int,
+        default=1,
+        help='objects on the table at once, each in a lane of its own (arrivals overlap: one '
+        'every arrival-interval / N s; demands of different objects staggered); 1 to 4',
     )
     sv.add_argument(
         '--demand-at',
@@ -734,6 +742,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             keep_bags=args.keep_bags,
             system=args.system,
             seed=args.seed,
+            objects_at_once=args.objects_at_once,
         )
         surveil(args.out, session, run_options(args), hw, args.home)
     elif args.command == 'replay':

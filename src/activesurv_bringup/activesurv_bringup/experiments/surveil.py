@@ -43,13 +43,13 @@ from activesurv_bringup.experiments.records import (
 )
 from activesurv_bringup.experiments.tracking import TrackRecorder, track_metrics
 from activesurv_bringup.rig.rigs import RigChoice
-from activesurv_common.occlusion import obstacles_to_list
+from activesurv_common.occlusion import obstacles_to_list, plate_box
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.bagio import read_bag, run_info
-from activesurv_sim.stream import PATH_KINDS, ObjectStream
+from activesurv_sim.stream import MAX_AT_ONCE, PATH_KINDS, ObjectStream
 
 # Where the Set A cameras can serve (their placement covers the paper's tracking region).
 DEMAND_REGION = (0.10, 0.40, 0.0, 0.2)
@@ -73,6 +73,8 @@ class SurveilOptions:
         path_kinds: the path kinds objects are drawn from.
         rig: the rig and calibration (``--rig``, ``--calibration``); None: the set-up is the
             truth.
+        objects_at_once: objects on the table at once (lanes; their arrivals overlap, one
+            every ``arrival_interval`` / N s).
     """
 
     duration: float | None = None
@@ -86,8 +88,14 @@ class SurveilOptions:
     seed: int = 1
     path_kinds: tuple[str, ...] = PATH_KINDS
     rig: RigChoice | None = None  # the simulated hardware and what the system is told
+    objects_at_once: int = 1
 
     def __post_init__(self) -> None:
+        if not 1 <= self.objects_at_once <= MAX_AT_ONCE:
+            raise ConfigError(
+                f'--objects-at-once must be 1 to {MAX_AT_ONCE} (lanes of the table), '
+                f'got {self.objects_at_once}'
+            )
         if self.duration is not None and not (
             math.isfinite(self.duration) and self.duration > 0.0
         ):
@@ -146,6 +154,7 @@ def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
             'arrival_interval': s.arrival_interval,
             'first_entry': FIRST_ENTRY,
             'kinds': list(s.path_kinds),
+            'at_once': int(s.objects_at_once),
             'speed': float(obj['speed']),
             'acceleration': float(obj['acceleration']),
         },
@@ -209,7 +218,12 @@ def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> lis
                 demand_interval=float(s.demand_interval),
                 demand_lines=[float(x) for x in s.demand_at] or [0.25],
                 demand_region=[float(v) for v in DEMAND_REGION],
+                objects_at_once=int(s.objects_at_once),
             )
+        elif spec.name == 'overhead_locator' and s.objects_at_once > 1:
+            p.update(all_markers=True)
+        elif spec.name.endswith('_imager') and s.objects_at_once > 1:
+            p.update(several_objects=True)
         elif spec.name in TABLES:
             p.update(
                 path_type='stream',
@@ -218,6 +232,8 @@ def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> lis
                 path_kinds=list(s.path_kinds),
                 start_time=FIRST_ENTRY,
             )
+            if spec.name == 'xy_table':  # (a real table carries one object)
+                p['objects_at_once'] = int(s.objects_at_once)
             p.pop('path_points', None)
             p.pop('csv_file', None)
         elif spec.name == 'fusion':
@@ -333,15 +349,31 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     if info.get('mode') != 'surveil':
         raise BagError(f'bag {bag} is not a surveil session (mode {info.get("mode")!r})')
     origin = float(info.get('time_origin') or 0.0)  # a hardware session: wall clock
-    truth = TimeSeries(6, capacity=10**7)
-    present = TimeSeries(1, capacity=10**7)
+    st = info['stream']
+    stream = ObjectStream(
+        int(st['seed']),
+        float(st['arrival_interval']),
+        float(st['first_entry']),
+        list(st['kinds']),
+        speed=float(st['speed']),
+        acceleration=float(st['acceleration']),
+        at_once=int(st.get('at_once', 1)),
+    )
+
+    def truth_id(t: float) -> int:
+        p = stream.pass_at(t - origin)
+        return 0 if p is None else int(p.id)
+
+    # One truth per lane (several objects at once publish a state per lane and tick).
+    truths: dict[int, TimeSeries] = {}
+    presents: dict[int, TimeSeries] = {}
     requests: dict[int, Any] = {}
     observations: dict[int, list[Any]] = {}
     estimates: dict[int, tuple[Any, int]] = {}
     object_of: dict[int, int] = {}
     confirmed: dict[int, float] = {}
     end = 0.0
-    tracked = TrackRecorder()
+    tracked = TrackRecorder(truth_id)
     topics = {
         '/object_state',
         '/object_tracks',
@@ -354,8 +386,14 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         end = max(end, m.t_ns * 1e-9)
         if m.topic == '/object_state':
             t = msg_stamp(m.msg)
-            truth.add(t, np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)])
-            present.add(t, [1.0 if m.msg.in_workspace else 0.0])
+            slot = int(getattr(m.msg, 'slot', 0))
+            if slot not in truths:
+                truths[slot] = TimeSeries(6, capacity=10**7)
+                presents[slot] = TimeSeries(1, capacity=10**7)
+            truths[slot].add(
+                t, np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)]
+            )
+            presents[slot].add(t, [1.0 if m.msg.in_workspace else 0.0])
             tracked.on_truth(t, m.msg)
         elif m.topic == '/object_tracks':
             tracked.on_tracks(msg_stamp(m.msg), m.msg)
@@ -372,6 +410,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
     model = SensorModel.load()
     obstacles = run_obstacles(info)
+    radius = float(info.get('marker_radius', 0.0125))
     demands = []
     for j in sorted(set(requests) | set(estimates)):
         req = requests.get(j)
@@ -380,30 +419,35 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             if req is not None
             else msg_stamp(estimates[j][0])
         )
-        s = truth.at(tj, hold=0.5)
-        if s is None:
-            continue
+        here = _objects_at(truths, presents, tj)
+        if not here:
+            parked = truths[0].at(tj, hold=0.5) if 0 in truths else None
+            if parked is None:
+                continue
+            here = [parked]
+        guess = (
+            msg_vector(req.predicted_position)
+            if req is not None
+            else msg_vector(estimates[j][0].position)
+        )
+        s = min(here, key=lambda v: float(np.linalg.norm(v[:3] - guess)))
+        blocking = None
+        if obstacles is not None:  # the other objects' plates stand in the way too
+            blocking = list(obstacles) + [
+                plate_box(o[:3], o[3:], OBJECT_HALF_SIZE) for o in here if o is not s
+            ]
         rec = demand_record(
-            j, tj, s, req, observations.get(j, []), estimates.get(j), model, obstacles
+            j, tj, s, req, observations.get(j, []), estimates.get(j), model, blocking, radius
         )
         doc = rec.to_json()
         doc['t'] = tj - origin
         doc['object'] = object_of.get(j, 0)
         demands.append(doc)
-    st = info['stream']
-    stream = ObjectStream(
-        int(st['seed']),
-        float(st['arrival_interval']),
-        float(st['first_entry']),
-        list(st['kinds']),
-        speed=float(st['speed']),
-        acceleration=float(st['acceleration']),
-    )
     objects = []
     for oid, t in sorted(confirmed.items()):
         if oid == 0:
             continue
-        p = stream.pass_at(t - origin)
+        p = _pass_of(stream, tracked, oid, t - origin, origin)
         objects.append(
             {
                 'id': oid,
@@ -416,15 +460,8 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             }
         )
     lat = [d['latency'] for d in demands if d.get('latency') is not None]
-
-    def truth_id(t: float) -> int:
-        p = stream.pass_at(t - origin)
-        return 0 if p is None else int(p.id)
-
     tracking = (
-        tracked.metrics(truth_id)
-        if 'hardware' not in info or info.get('truth')
-        else track_metrics([], [])
+        tracked.metrics() if 'hardware' not in info or info.get('truth') else track_metrics([], [])
     )
     return {
         'mode': 'surveil',
@@ -447,6 +484,43 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             **tracking,
         },
     }
+
+
+OBJECT_HALF_SIZE = 0.03  # m: half side of an object's marker plates (ObjectGeometry)
+
+
+def _pass_of(
+    stream: ObjectStream, tracked: TrackRecorder, oid: int, t: float, origin: float
+) -> Any:
+    """The stream's object that track ``oid`` followed, confirmed at run time ``t``: the one
+    on the table then (several at once: the one nearest the track's first estimate)."""
+    passes = stream.passes_at(t)
+    if len(passes) <= 1:
+        return passes[0] if passes else stream.pass_at(t)
+    for stamp, items in sorted(tracked.tracks):
+        for i, x, y in items:
+            if i == oid:
+                xy = np.array([x, y])
+                return min(
+                    passes,
+                    key=lambda p: float(
+                        np.linalg.norm(p.path.position(stamp - origin - p.entered) - xy)
+                    ),
+                )
+    return passes[0]
+
+
+def _objects_at(
+    truths: dict[int, TimeSeries], presents: dict[int, TimeSeries], t: float
+) -> list[np.ndarray]:
+    """Side marker and normal (6,) of every object on the table at ``t``."""
+    out = []
+    for slot, series in truths.items():
+        here = presents[slot].at(t, hold=0.5)
+        s = series.at(t, hold=0.5)
+        if s is not None and here is not None and here[0] > 0.5:
+            out.append(s)
+    return out
 
 
 def session_table(doc: dict[str, Any]) -> str:

@@ -18,7 +18,7 @@ Tentative tracks (no id yet) count as tracks for GOSPA, not for identities.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -103,43 +103,58 @@ def id_switches(tracks: Sequence[Snapshot], truth: Sequence[Snapshot]) -> int:
 class TrackRecorder:
     """Collects overhead tracks and the truth from a bag's messages, for :func:`track_metrics`.
 
-    Feed it ``/object_state`` (:meth:`on_truth`) and ``/object_tracks`` (:meth:`on_tracks`)
-    messages in any order; :meth:`metrics` matches each track message with the truth at its
-    stamp (held up to 0.5 s), the object's id given by ``truth_id(t)`` (1 by default).
+    Feed it ``/object_state`` (:meth:`on_truth`, one per lane with several objects at once)
+    and ``/object_tracks`` (:meth:`on_tracks`) messages in any order; :meth:`metrics` matches
+    each track message with every lane's truth at its stamp (held up to 0.5 s).
     """
 
-    def __init__(self) -> None:
-        self.truth: list[tuple[float, float, float, bool]] = []
+    def __init__(self, truth_id: Callable[[float], int] | None = None) -> None:
+        """``truth_id(t)``: the object's id at ``t`` for bags whose states carry none."""
+        self.truth_id = truth_id
+        # slot -> [(t, truth id, x, y, present)]
+        self.truth: dict[int, list[tuple[float, int, float, float, bool]]] = {}
         self.tracks: list[tuple[float, tuple[tuple[int, float, float], ...]]] = []
 
     def on_truth(self, t: float, msg: Any) -> None:
         p = msg.top_marker
-        self.truth.append((t, float(p.x), float(p.y), bool(msg.in_workspace)))
+        slot = int(getattr(msg, 'slot', 0))
+        oid = int(getattr(msg, 'id', 0))
+        if not oid:  # a bag from before ids: the stream's (or the experiment's one object)
+            oid = self.truth_id(t) if self.truth_id is not None else 1
+        rows = self.truth.setdefault(slot, [])
+        rows.append((t, oid, float(p.x), float(p.y), bool(msg.in_workspace)))
 
     def on_tracks(self, t: float, msg: Any) -> None:
         items = tuple((int(k.id), float(k.position.x), float(k.position.y)) for k in msg.tracks)
         self.tracks.append((t, items))
 
-    def metrics(self, truth_id: Any = None) -> dict[str, Any]:
-        if not self.truth:
-            return track_metrics([], [])
-        truth = sorted(self.truth)
-        times = np.array([r[0] for r in truth])
-        pairs_m, pairs_t = [], []
-        for t, items in sorted(self.tracks):
+    def objects_at(self, t: float) -> list[tuple[int, float, float]]:
+        """Every lane's object present at ``t`` (id, x, y), from the samples nearest ``t``."""
+        out = []
+        for rows in self.truth.values():
+            times = np.array([r[0] for r in rows])
             j = int(np.searchsorted(times, t))
             near = [i for i in (j - 1, j) if 0 <= i < len(times)]
-            i = min(near, key=lambda i: abs(times[i] - t))
-            if abs(times[i] - t) > 0.5:
+            if not near:
                 continue
-            _, x, y, present = truth[i]
-            oid = 1 if truth_id is None else int(truth_id(t))
-            pairs_m.append(Snapshot(t, items))
-            pairs_t.append(Snapshot(t, ((oid, x, y),) if present and oid else ()))
-        most = max(
-            (1 for r in truth if r[3]),
-            default=0,
-        )
+            i = min(near, key=lambda i: abs(times[i] - t))
+            _, oid, x, y, present = rows[i]
+            if abs(times[i] - t) <= 0.5 and present:
+                out.append((oid, x, y))
+        return out
+
+    def metrics(self) -> dict[str, Any]:
+        if not self.truth:
+            return track_metrics([], [])
+        for rows in self.truth.values():
+            rows.sort()
+        pairs_m = [Snapshot(t, items) for t, items in sorted(self.tracks)]
+        pairs_t = [Snapshot(s.t, tuple(self.objects_at(s.t))) for s in pairs_m]
         out = track_metrics(pairs_m, pairs_t)
-        out['max_objects_at_once'] = most
+        stamps = sorted({r[0] for rows in self.truth.values() for r in rows})
+        present: dict[float, int] = {}
+        for rows in self.truth.values():
+            for t, _, _, _, here in rows:
+                present[t] = present.get(t, 0) + int(here)
+        out['max_objects_at_once'] = max((present.get(t, 0) for t in stamps), default=0)
         return out

@@ -1,6 +1,7 @@
-"""Continuous surveillance, the short version of the soak (about 2 minutes): objects one after
-another at rtf 1, a split bag, a clean stop on SIGINT that answers every open demand, and the
-results contract (``objects``, ``demands`` with ``object``)."""
+"""Continuous surveillance, the short version of the soak (about 2 minutes): two objects at
+once at rtf 1 (lanes, every marker tracked, staggered demands), a split bag, a clean stop on
+SIGINT that answers every open demand, and the results contract (``objects``, ``demands`` with
+``object`` and ``occluded``, ``summary`` with the tracking figures)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 EXPERIMENT_KEYS = {'index', 't', 'true_position', 'estimated_position', 'visibility', 'cameras'}
 
 
-def test_surveil_runs_objects_one_after_another_and_stops_cleanly_on_sigint(
+def test_surveil_runs_two_objects_at_once_and_stops_cleanly_on_sigint(
     tmp_path: Path,
 ) -> None:
     out = tmp_path / 'session'
@@ -39,6 +40,8 @@ def test_surveil_runs_objects_one_after_another_and_stops_cleanly_on_sigint(
             '15',
             '--seed',
             '3',
+            '--objects-at-once',
+            '2',
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -75,6 +78,13 @@ def test_surveil_runs_objects_one_after_another_and_stops_cleanly_on_sigint(
         assert set(d) >= EXPERIMENT_KEYS
         assert d['object'] in {o['id'] for o in doc['objects']}
         assert d['status'] != 'no_answer', d  # nothing requested was left unanswered
+    assert all(d['occluded'] == [] for d in demands)  # nothing stood in the way
+    # Two at once, each followed by one track all along (ids from the truth's lanes).
+    summary = doc['summary']
+    assert summary['max_objects_at_once'] == 2
+    assert summary['id_switches'] == 0
+    assert 0.0 < summary['gospa_mean'] < 0.02
+    assert len({d['object'] for d in demands}) >= 2
     ok = [d for d in demands if d['status'] == 'ok']
     assert len(ok) >= 0.8 * len(demands), [(d['index'], d['status'], d['reason']) for d in demands]
     assert max(d['position_error'] for d in ok) < 1e-3

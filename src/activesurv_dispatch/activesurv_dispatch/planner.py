@@ -203,6 +203,28 @@ class DispatchPlanner:
         """Put a camera back into dispatching (its nodes are heard again)."""
         self.excluded.discard(camera_id)
 
+    def _better(
+        self, camera_id: str, old: Candidate | None, new: Candidate, demand: Demand
+    ) -> Candidate:
+        """Replanning never trades a desired pose for a worse one: the new best achievable
+        pose is reckoned from rest at the camera's current position, so a camera still on its
+        way underrates what it can reach, and re-aiming it at each new prediction would make
+        it stop short (at the edge of that box) frame after frame. The old pose stays when it
+        sees the new prediction better."""
+        if old is None:
+            return new
+        vis, d, b, inside = view_batch(
+            self.sensors[camera_id],
+            old.joints[None, :],
+            demand.target,
+            self.setup.marker_radius,
+            self.model,
+            occluders=self.occluders(demand),
+        )
+        if float(vis[0]) > new.visibility:
+            return Candidate(old.joints, float(vis[0]), float(d[0]), float(b[0]), bool(inside[0]))
+        return new
+
     def _blocked(self, camera_id: str, q: Array, demand: Demand) -> bool:
         """Whether an occluder stands between the camera at ``q`` and ``demand``'s marker."""
         occluders = self.occluders(demand)
@@ -383,15 +405,20 @@ class DispatchPlanner:
                 if self._replan_needed(frozen, first, alive):
                     dt = first.time - now - self.settle_time
                     for c in alive:
-                        frozen.desired[c] = best_achievable_pose(
-                            self.sensors[c],
-                            joints[c],
-                            first.target,
-                            dt,
-                            self.model,
-                            self.setup.marker_radius,
-                            self.samples,
-                            self.occluders(first),
+                        frozen.desired[c] = self._better(
+                            c,
+                            frozen.desired.get(c),
+                            best_achievable_pose(
+                                self.sensors[c],
+                                joints[c],
+                                first.target,
+                                dt,
+                                self.model,
+                                self.setup.marker_radius,
+                                self.samples,
+                                self.occluders(first),
+                            ),
+                            first,
                         )
                     frozen.reference = first
                     self.replans += 1

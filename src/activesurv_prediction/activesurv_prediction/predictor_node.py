@@ -12,10 +12,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import replace
 from typing import Any
 
-import numpy as np
 from geometry_msgs.msg import PointStamped, PoseArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -26,11 +24,14 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import DemandHorizon, ObjectTracks
 from activesurv_prediction.conversions import horizon_to_msg, tracks_to_msg
-from activesurv_prediction.demands import TargetGeometry, demand_source, predict_demands
 from activesurv_prediction.errors import PredictionError
-from activesurv_prediction.multi import MultiTracker
-from activesurv_prediction.predictor import make_predictor
-from activesurv_prediction.tracker import Tracker, TrackState, Workspace, fix_statistics
+from activesurv_prediction.session import (
+    HorizonUpdate,
+    PredictionSession,
+    PredictorConfig,
+    finite_fix,
+)
+from activesurv_prediction.tracker import TrackState, Workspace, fix_statistics
 
 
 def _workspace_problem(v: Any) -> str | None:
@@ -95,36 +96,13 @@ class PredictorNode(Node):
         super().__init__('predictor', **kwargs)
         declare(self, PARAMS)
         v = {p.name: self.get_parameter_or(p.name, Parameter(p.name)).value for p in PARAMS}
-        v['demand_times'] = v['demand_times'] or []  # unset: the regular schedule
-        self.schedule, self.objects = demand_source(
-            str(v['demand_mode']),
-            v['demand_times'],
-            (float(v['first_demand']), float(v['service_interval']), int(v['demand_count'])),
-            float(v['demand_interval']),
-            v['demand_lines'],
-            v['demand_region'],
-            float(v['demand_freeze']),
-        )
-        self.geometry = TargetGeometry.create(v['side_marker_offset'], v['side_marker_normal'])
-        self.tracker = Tracker(
-            make_predictor(
-                str(v['model']),
-                measurement_std=float(v['measurement_std']),
-                jerk_std=float(v['jerk_std']),
-                gate=float(v['gate']),
-            ),
-            Workspace(*[float(x) for x in v['workspace']]),
-            confirm_fixes=int(v['confirm_fixes']),
-            lost_timeout=float(v['lost_timeout']),
-        )
-        self.marker_height = float(v['marker_height'])
-        self.horizon = int(v['horizon'])
+        config = PredictorConfig.from_parameters(v)
+        self.session = PredictionSession(config)
         self.frame_id = str(v['frame_id'])
         self._fix_times: deque[float] = deque(maxlen=60)
         self._innovations: deque[float] = deque(maxlen=300)
         self._fixes = 0
         self._bad_fixes = 0
-        self._last_state = TrackState.NONE
 
         self._horizon_pub = self.create_publisher(
             DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED
@@ -132,24 +110,7 @@ class PredictorNode(Node):
         self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
         self._tracks_pub = self.create_publisher(ObjectTracks, topics.OBJECT_TRACKS, qos.STATE)
         self._diag_pub = self.create_publisher(diagnostics.DiagnosticArray, *DIAG)
-        self.multi: MultiTracker | None = None
-        if int(v['objects_at_once']) > 1:
-            if self.objects is None:
-                raise PredictionError('several objects at once need demand_mode interval or lines')
-            book = self.objects.book
-            self.multi = MultiTracker(
-                str(v['model']),
-                float(v['measurement_std']),
-                float(v['jerk_std']),
-                int(v['confirm_fixes']),
-                Workspace(*[float(x) for x in v['workspace']]),
-                float(v['lost_timeout']),
-                book.interval,
-                book.lines,
-                book.region,
-                book.freeze,
-                int(v['objects_at_once']),
-            )
+        if self.session.multi is not None:
             self.create_subscription(PoseArray, topics.OVERHEAD_FIXES, self._on_fixes, qos.STATE)
         else:
             self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
@@ -162,108 +123,55 @@ class PredictorNode(Node):
     def _on_fix(self, msg: PointStamped) -> None:
         self._fixes += 1
         t = time_to_sec(msg.header.stamp)
-        xy = np.array([msg.point.x, msg.point.y], dtype=np.float64)
-        if not np.all(np.isfinite(xy)):
+        xy = finite_fix([msg.point.x, msg.point.y])
+        if xy is None:
             self._bad_fixes += 1
             return
-        result = self.tracker.update(t, xy)
-        if result is None:
+        out = self.session.on_fix(t, xy)
+        if out is None:
             return
-        if result.accepted:
+        if out.accepted:
             self._fix_times.append(t)
             self._track_pub.publish(msg)
-        if math.isfinite(result.mahalanobis2):
-            self._innovations.append(result.mahalanobis2)
-        self._publish_horizon(t)
+        if math.isfinite(out.mahalanobis2):
+            self._innovations.append(out.mahalanobis2)
+        self._publish(out)
 
     def _on_fixes(self, msg: PoseArray) -> None:
         """Several objects: every top marker of one overhead frame."""
-        assert self.multi is not None
         t = time_to_sec(msg.header.stamp)
-        xy = [np.array([p.position.x, p.position.y], dtype=np.float64) for p in msg.poses]
-        good = [v for v in xy if np.all(np.isfinite(v))]
+        xy = [finite_fix([p.position.x, p.position.y]) for p in msg.poses]
+        good = [v for v in xy if v is not None]
         self._fixes += len(good)
         self._bad_fixes += len(xy) - len(good)
         self._fix_times.append(t)
-        for text in self.multi.update(t, good):
-            self.get_logger().info(text)
-        self._publish_multi(t)
-
-    def _publish_multi(self, now: float) -> None:
-        assert self.multi is not None
-        m = self.multi
-        preds = m.horizon(now, self.horizon, self.geometry, self.marker_height)
-        motion = replace(m.motion(), manoeuvre_count=m.manoeuvre_count())
-        self._horizon_pub.publish(horizon_to_msg(preds, m.state(), now, self.frame_id, motion))
-        self._tracks_pub.publish(
-            tracks_to_msg(m.estimates(now), now, self.frame_id, self.marker_height)
-        )
-
-    def _publish_horizon(self, now: float) -> None:
-        state = self.tracker.state
-        preds: list[Any] = []
-        if self.objects is not None:
-            preds, events = self.objects.update(
-                self.tracker, now, self.horizon, self.geometry, self.marker_height
-            )
-            for text in events:
-                self.get_logger().info(text)
-        elif state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
-            p, h = self.tracker.predictor, self.horizon
-            preds = predict_demands(p, self.schedule, self.geometry, self.marker_height, now, h)
-        self._horizon_pub.publish(
-            horizon_to_msg(preds, state, now, self.frame_id, self.tracker.motion())
-        )
-        # A session numbers its objects at confirmation; an experiment has its tracks.
-        object_id = (
-            self.objects.book.object_id
-            if self.objects is not None
-            else self.tracker.tracks_started
-        )
-        self._tracks_pub.publish(
-            tracks_to_msg(
-                self.tracker.estimates(now, object_id), now, self.frame_id, self.marker_height
-            )
-        )
-        if self.tracker.manoeuvre:
-            self.get_logger().info(f'manoeuvre: the object is {self.tracker.manoeuvres.regime}')
-        if state is not self._last_state:
-            self.get_logger().info(f'track {self._last_state.name} -> {state.name}')
-            self._last_state = state
+        self._publish(self.session.on_fixes(t, good))
 
     def _on_tick(self) -> None:
-        if self.multi is not None:
-            events = self.multi.check_timeout(self._now())
-            for text in events:
-                self.get_logger().info(text)
-            if events:
-                self._publish_multi(self._now())
-            return
-        if self.tracker.check_timeout(self._now()):
-            self.get_logger().warning('track lost: object not seen for too long')
-            self._publish_horizon(self._now())
+        out = self.session.tick(self._now())
+        if out is not None:
+            self._publish(out)
+
+    def _publish(self, out: HorizonUpdate) -> None:
+        c = self.session.config
+        self._horizon_pub.publish(
+            horizon_to_msg(out.demands, out.state, out.stamp, self.frame_id, out.motion)
+        )
+        self._tracks_pub.publish(
+            tracks_to_msg(out.tracks, out.stamp, self.frame_id, c.marker_height)
+        )
+        log = self.get_logger()
+        for text in out.events:
+            # rclpy ties a severity to each call site: one call per severity.
+            if text.startswith('track lost'):
+                log.warning(text)
+            else:
+                log.info(text)
 
     def _publish_diagnostics(self) -> None:
-        state = self.tracker.state
         values = fix_statistics(list(self._fix_times), list(self._innovations))
-        values.update(
-            track_state=state.name,
-            fixes=self._fixes,
-            bad_fixes=self._bad_fixes,
-            outliers_rejected=self.tracker.predictor.rejections,
-            tracks_started=self.tracker.tracks_started,
-            motion=self.tracker.manoeuvres.regime or '-',
-            manoeuvres=self.tracker.manoeuvres.count,
-        )
-        if self.multi is not None:
-            state = self.multi.state()
-            values.update(
-                track_state=state.name,
-                tracks=len(self.multi.tracks),
-                confirmed=sum(1 for k in self.multi.tracks if k.confirmed),
-                objects_seen=self.multi.objects,
-                manoeuvres=self.multi.manoeuvre_count(),
-            )
+        values.update(self.session.status(), fixes=self._fixes, bad_fixes=self._bad_fixes)
+        state = self.session.state()
         level = diagnostics.OK if state is TrackState.CONFIRMED else diagnostics.WARN
         s = diagnostics.status(
             'activesurv/predictor', 'predictor', f'track {state.name}', values, level

@@ -64,7 +64,7 @@ def test_fixes_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., b
         got = np.array([d0.pose.pose.position.x, d0.pose.pose.position.y, d0.pose.pose.position.z])
         assert got == pytest.approx([0.19, 0.07, 0.05], abs=2e-3)
         assert tracks, 'accepted fixes are republished on overhead/track'
-        assert pred.tracker.predictor.rejections == 0  # NaN fixes never reach the filter
+        assert pred.session.tracker.predictor.rejections == 0  # NaN fixes never reach the filter
     finally:
         for n in (pred, peer):
             n.destroy_node()

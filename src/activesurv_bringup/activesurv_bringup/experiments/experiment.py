@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,8 @@ from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.initial_pose import initial_poses
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup, setup_to_dict
+from activesurv_dispatch.session import DispatcherConfig
+from activesurv_prediction.session import PredictorConfig
 from activesurv_sim.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
 from activesurv_stages.errors import ConfigError as StageConfigError
 
@@ -105,6 +108,34 @@ class Experiment:
     def end_time(self) -> float:
         return self.demand_times[-1] + 1.0
 
+    def predictor_config(self, demand_times: Sequence[float] | None = None) -> PredictorConfig:
+        """What the predictor is told in this experiment (the typed run description: the one
+        place that reads the experiments YAML's predictor and object keys)."""
+        pc, obj = self.config['predictor'], self.config['object']
+        times = self.demand_times if demand_times is None else demand_times
+        return PredictorConfig(
+            model=str(pc.get('model', 'imm')),
+            measurement_std=float(pc['measurement_std']),
+            jerk_std=float(pc['jerk_std']),
+            confirm_fixes=int(pc['confirm_fixes']),
+            horizon=int(pc['horizon']),
+            marker_height=float(obj['top_height']),
+            side_offset=_three(obj['side_offset']),
+            side_normal=_three(obj['side_normal']),
+            demand_times=tuple(float(t) for t in times),
+        )
+
+    def dispatcher_config(self, camera_timeout: float = 0.5) -> DispatcherConfig:
+        """What the dispatcher is told in this experiment."""
+        dc = self.config['dispatch']
+        return DispatcherConfig(
+            int(self.config['k']),
+            float(dc['rho']),
+            float(dc['capture_lead']),
+            float(dc['settle_time']),
+            camera_timeout,
+        )
+
     def summary(self) -> dict[str, Any]:
         rig = self.rig.describe() if self.rig is not None else {'rig': None, 'calibration': None}
         return {
@@ -116,6 +147,13 @@ class Experiment:
             'demand_times': list(self.demand_times),
             'initial_poses': {c: [float(v) for v in q] for c, q in self.setup.initial.items()},
         }
+
+
+def _three(v: Any) -> tuple[float, float, float]:
+    x = [float(a) for a in v]
+    if len(x) != 3:
+        raise ConfigError(f'expected 3 numbers, got {v!r}')
+    return x[0], x[1], x[2]
 
 
 def _path(spec: dict[str, Any], obj: dict[str, Any]) -> TimedPath:

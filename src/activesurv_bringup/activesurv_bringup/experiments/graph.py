@@ -237,24 +237,13 @@ def core_specs(
 ) -> list[NodeSpec]:
     """Predictor, dispatcher, frames and fusion: the same in simulated and hardware runs but
     for their ``clock`` (``use_sim_time``), the believed set-up and the demand instants."""
-    cfg, obj = exp.config, exp.config['object']
-    pc, dc = cfg['predictor'], cfg['dispatch']
+    cfg = exp.config
+    dispatcher = exp.dispatcher_config()
     return [
         NodeSpec(
             'predictor',
             'activesurv_prediction.predictor_node',
-            parameters={
-                **clock,
-                'marker_height': float(obj['top_height']),
-                'demand_times': [float(t) for t in demand_times],
-                'horizon': int(pc['horizon']),
-                'measurement_std': float(pc['measurement_std']),
-                'jerk_std': float(pc['jerk_std']),
-                'model': str(pc.get('model', 'imm')),
-                'confirm_fixes': int(pc['confirm_fixes']),
-                'side_marker_offset': [float(v) for v in obj['side_offset']],
-                'side_marker_normal': [float(v) for v in obj['side_normal']],
-            },
+            parameters={**clock, **exp.predictor_config(demand_times).to_parameters()},
         ),
         NodeSpec(
             'dispatcher',
@@ -263,10 +252,10 @@ def core_specs(
                 **clock,
                 'motion_class': exp.system,
                 **believed,
-                'k': int(cfg['k']),
-                'rho': float(dc['rho']),
-                'capture_lead': float(dc['capture_lead']),
-                'settle_time': float(dc['settle_time']),
+                'k': dispatcher.k,
+                'rho': dispatcher.rho,
+                'capture_lead': dispatcher.capture_lead,
+                'settle_time': dispatcher.settle_time,
             },
         ),
         NodeSpec(

@@ -16,6 +16,7 @@ It is deterministic for a seed, and fast enough for Monte Carlo studies over man
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -36,16 +37,14 @@ from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
-from activesurv_dispatch.session import Dispatcher, DispatcherConfig
+from activesurv_dispatch.session import Dispatcher
 from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
 from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
 from activesurv_imaging.capture import CaptureCore, ImagerConfig
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
-from activesurv_prediction.demands import DemandSchedule, TargetGeometry, predict_demands
-from activesurv_prediction.predictor import make_predictor
-from activesurv_prediction.tracker import Tracker, TrackState, Workspace
+from activesurv_prediction.session import PredictionSession
 from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.sim_camera import ObjectGeometry, object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
@@ -100,34 +99,13 @@ def run_lockstep(
     true_over, T_over = exp.overhead(truth=True)
     over_cam, T_over_believed = exp.overhead(truth=False)
     over_renderer = Renderer(true_over)
-    pc = cfg['predictor']
-    tracker = Tracker(
-        make_predictor(
-            str(pc.get('model', 'imm')),
-            measurement_std=float(pc['measurement_std']),
-            jerk_std=float(pc['jerk_std']),
-        ),
-        Workspace(),
-        confirm_fixes=int(pc['confirm_fixes']),
-    )
-    schedule = DemandSchedule.explicit(exp.demand_times)
-    om = exp.object_model
-    target_geo = TargetGeometry.create(om.side_offset, om.side_normal)
+    # The same session core as the predictor node.
+    session = PredictionSession(exp.predictor_config())
+    tracker = session.tracker
 
-    # Dispatch, stages and imagers: the same session cores as the nodes
-    dc = cfg['dispatch']
-    dispatcher = Dispatcher(
-        exp.setup,
-        exp.model,
-        DispatcherConfig(
-            int(cfg['k']),
-            float(dc['rho']),
-            float(dc['capture_lead']),
-            float(dc['settle_time']),
-            # Lockstep hears every camera every step: liveness never expires.
-            camera_timeout=float('inf'),
-        ),
-    )
+    # Dispatch, stages and imagers: the same session cores as the nodes (lockstep hears every
+    # camera every step: liveness never expires).
+    dispatcher = Dispatcher(exp.setup, exp.model, exp.dispatcher_config(math.inf))
     cameras = {
         s.camera_id: _Camera(
             [
@@ -167,10 +145,12 @@ def run_lockstep(
         t = step * dt
         state = _state_vector(exp, t)
         img = over_renderer.render(T_over, object_scene(state, geometry, fixtures), noise, rng)
-        fix = overhead_fix(img, over_cam, T_over_believed, om.top_height, exp.setup.marker_radius)
+        fix = overhead_fix(
+            img, over_cam, T_over_believed, exp.object_model.top_height, exp.setup.marker_radius
+        )
         if fix.xy is not None:
-            tracker.update(t, fix.xy)
-        tracker.check_timeout(t)
+            session.on_fix(t, fix.xy)
+        session.tick(t)
         if track_log is not None:
             seen = tracker.estimates(t, tracker.tracks_started)
             present = tracker.workspace.contains(state[:2])  # on the table, not parked
@@ -183,18 +163,18 @@ def run_lockstep(
                     Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
                 )
             )
+        now_horizon = session.horizon(t)
         horizon: list[Demand] = []
-        if tracker.state in (TrackState.TENTATIVE, TrackState.CONFIRMED):
-            for p in predict_demands(
-                tracker.predictor, schedule, target_geo, om.top_height, t, int(pc['horizon'])
-            ):
-                horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
-                predicted.add(t, p.index, p.position, p.covariance)
+        for p in now_horizon.demands:
+            horizon.append(Demand(p.index, p.instant, p.position, p.normal, p.covariance))
+            predicted.add(t, p.index, p.position, p.covariance)
         # The dispatcher decides ``latency`` after the frame, as the graph's does.
         now = t + latency
         for c, cam in cameras.items():
             dispatcher.on_joints(c, cam.joints(now), now)
-        out = dispatcher.set_horizon(horizon, now, manoeuvres=tracker.manoeuvres.count, stamp=t)
+        out = dispatcher.set_horizon(
+            horizon, now, manoeuvres=now_horizon.motion.manoeuvre_count, stamp=t
+        )
         out.merge(dispatcher.tick(now, serviced_until=t + dt - 1e-9))
         for cmd in out.goals:
             for ax, goal, v in zip(

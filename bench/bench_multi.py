@@ -10,6 +10,10 @@ simulated seconds (600 by default: the issue's 10 minutes) at rtf 1:
 * ``two_not_occluded_fraction``: demands whose assigned cameras all saw the marker unblocked
   (``occluded`` empty);
 * ``two_id_switches``, ``two_gospa_mean_mm``, ``two_max_objects_at_once``;
+* ``two_cameras_vs_clairvoyant`` / ``two_visibility_vs_clairvoyant``: cameras per demand and
+  mean fused visibility against a clairvoyant dispatcher (knows the true positions and
+  occlusions; ``activesurv_bringup.experiments.clairvoyant``), and
+  ``two_greedy_visibility_vs_clairvoyant`` for an occlusion-blind greedy one;
 * ``two_latency_median_ms``: demand instant to estimate;
 * ``tracker_ms_per_frame_1`` / ``_3`` / ``_10``: the MultiTracker's time per overhead frame
   (gating, assignment, the IMM updates) with 1, 3 and 10 objects, and
@@ -31,6 +35,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from activesurv_bringup.experiments.clairvoyant import compare
 from activesurv_prediction.demands import TargetGeometry
 from activesurv_prediction.multi import MultiTracker
 
@@ -39,7 +44,11 @@ SESSION_S = float(os.environ.get('ACTIVESURV_BENCH_MULTI_S', '600'))
 POST = {'kind': 'cylinder', 'centre': [0.25, -0.2, 0.05], 'radius': 0.015, 'height': 0.1}
 
 
-def _session(tmp: Path, n: int) -> dict[str, Any]:
+def _round(v: float | None) -> float | None:
+    return None if v is None else round(float(v), 4)
+
+
+def _session(tmp: Path, n: int) -> tuple[dict[str, Any], Path]:
     rig = tmp / 'rig.yaml'
     if not rig.exists():
         subprocess.run([ACTIVESURV, 'rig', 'nominal', '--out', str(rig)], check=True)
@@ -56,13 +65,19 @@ def _session(tmp: Path, n: int) -> dict[str, Any]:
         timeout=SESSION_S * 3 + 600,
     )
     doc: dict[str, Any] = json.loads((out / 'results.json').read_text())
-    return doc
+    return doc, out
 
 
-def _figures(doc: dict[str, Any]) -> dict[str, Any]:
+def _figures(doc: dict[str, Any], run: Path) -> dict[str, Any]:
     rows = doc['demands']
     s = doc['summary']
+    versus = compare(run)
     return {
+        'cameras_vs_clairvoyant': _round(versus.get('cameras_ratio')),
+        'visibility_vs_clairvoyant': _round(versus.get('visibility_ratio')),
+        'greedy_visibility_vs_clairvoyant': _round(versus.get('greedy_visibility_ratio')),
+        'clairvoyant_cameras_per_demand': _round(versus.get('clairvoyant_cameras_per_demand')),
+        'greedy_cameras_seeing_per_demand': _round(versus.get('greedy_cameras_seeing_per_demand')),
         'demands': len(rows),
         'ok_fraction': round(sum(r['status'] == 'ok' for r in rows) / max(len(rows), 1), 4),
         'cameras_per_demand': round(float(np.mean([len(r['assigned']) for r in rows])), 3)
@@ -108,7 +123,7 @@ def run() -> dict[str, Any]:
         out[f'tracker_ms_per_frame_{n}'], out[f'horizon_ms_per_frame_{n}'] = _tracker_ms(n)
     with tempfile.TemporaryDirectory(prefix='activesurv-multi-') as tmp:
         for n, label in ((2, 'two'), (3, 'three')):
-            figures = _figures(_session(Path(tmp), n))
+            figures = _figures(*_session(Path(tmp), n))
             print(f'  {n} objects at once: {figures}', flush=True)
             for key, value in figures.items():
                 out[f'{label}_{key}'] = value

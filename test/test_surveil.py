@@ -17,6 +17,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from activesurv_bringup.experiments.clairvoyant import compare
+
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 EXPERIMENT_KEYS = {'index', 't', 'true_position', 'estimated_position', 'visibility', 'cameras'}
@@ -85,6 +87,10 @@ def test_surveil_runs_two_objects_at_once_and_stops_cleanly_on_sigint(
     assert summary['id_switches'] == 0
     assert 0.0 < summary['gospa_mean'] < 0.02
     assert len({d['object'] for d in demands}) >= 2
+    # Against a clairvoyant dispatcher (true positions and occlusions) from the same poses.
+    versus = compare(out)
+    assert versus['demands'] == len([d for d in demands if d.get('true_position')])
+    assert versus['cameras_ratio'] > 0.8, {k: v for k, v in versus.items() if k != 'rows'}
     ok = [d for d in demands if d['status'] == 'ok']
     assert len(ok) >= 0.8 * len(demands), [(d['index'], d['status'], d['reason']) for d in demands]
     assert max(d['position_error'] for d in ok) < 1e-3

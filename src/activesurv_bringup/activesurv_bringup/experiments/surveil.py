@@ -475,6 +475,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
             else {}
         ),
         'objects': objects,
+        'obstacles': obstacles_to_list(obstacles or ()),
         'demands': demands,
         'summary': {
             'demands': len(demands),
@@ -554,6 +555,52 @@ def session_table(doc: dict[str, Any]) -> str:
     return '\n'.join(lines)
 
 
+def _top_view(doc: dict[str, Any], path: Path) -> Path:
+    """The table from above: every object's demand points (true, and the estimates), each
+    object in its colour, failed demands marked, and the cell's obstacles."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, Rectangle
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.add_patch(Rectangle((0.0, 0.0), 0.5, 0.2, fill=False, lw=1.0, color='0.4'))
+    for o in doc.get('obstacles') or []:
+        c = o['centre']
+        if o['kind'] == 'box':
+            dx, dy = o['size'][0], o['size'][1]
+            ax.add_patch(Rectangle((c[0] - dx / 2, c[1] - dy / 2), dx, dy, color='0.5'))
+        else:
+            ax.add_patch(Circle((c[0], c[1]), o['radius'], color='0.5'))
+    for o in doc['objects']:
+        ds = sorted((d for d in doc['demands'] if d['object'] == o['id']), key=lambda d: d['t'])
+        xy = np.array([d['true_position'][:2] for d in ds if d.get('true_position')])
+        if len(xy) == 0:
+            continue
+        (line,) = ax.plot(xy[:, 0], xy[:, 1], '-o', ms=3, lw=1, label=f'object {o["id"]}')
+        est = np.array([d['estimated_position'][:2] for d in ds if d.get('estimated_position')])
+        if len(est):
+            ax.plot(est[:, 0], est[:, 1], 'x', ms=4, color=line.get_color())
+        bad = np.array(
+            [d['true_position'][:2] for d in ds if d['status'] != 'ok' and d.get('true_position')]
+        )
+        if len(bad):
+            ax.plot(bad[:, 0], bad[:, 1], 'o', ms=9, mfc='none', color='red')
+    ax.set_aspect('equal')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m] (cameras below, at y < 0)')
+    ax.set_ylim(min(-0.05, *(o['centre'][1] - 0.05 for o in doc.get('obstacles') or [])), 0.22)
+    ax.grid(alpha=0.3)
+    if doc['objects']:
+        ax.legend(fontsize=7, ncol=4, loc='lower left')
+    ax.set_title('demand points (o), estimates (x), failed (red), obstacles (grey)', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     """``report.md`` and ``session.png`` (error and latency of every demand over time)."""
     import matplotlib
@@ -582,6 +629,7 @@ def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     png = out_dir / 'session.png'
     fig.savefig(png, dpi=90)
     plt.close(fig)
+    top = _top_view(doc, out_dir / 'scene_top.png')
     s = doc['summary']
     lines = [
         '# activesurv continuous surveillance',
@@ -597,6 +645,7 @@ def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
         for d in failed
     ] or ['- none']
     lines += ['', '```', session_table(doc), '```', '', f'![session]({png.name})', '']
+    lines += [f'![objects and obstacles seen from above]({top.name})', '']
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path

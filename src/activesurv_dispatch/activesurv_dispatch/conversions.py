@@ -6,6 +6,7 @@ import numpy as np
 from geometry_msgs.msg import Point
 from visualization_msgs.msg import Marker, MarkerArray
 
+from activesurv_common.occlusion import Box
 from activesurv_common.ros.conversions import pose_from_transform, sec_to_time, time_to_sec
 from activesurv_dispatch.motion import Capture, StageCommand
 from activesurv_dispatch.planner import Demand, Plan, Role
@@ -155,5 +156,20 @@ def plan_markers(
         m.color.r, m.color.g, m.color.b, m.color.a = (
             (1.0, 0.2, 0.2, 1.0) if first else (0.3, 0.5, 1.0, 0.7)
         )
+        arr.markers.append(m)
+    for o in setup.obstacles:  # the cell's fixtures, grey
+        kind = Marker.CUBE if isinstance(o, Box) else Marker.CYLINDER
+        m = Marker(ns='obstacles', id=mid, type=kind, action=Marker.ADD)
+        mid += 1
+        m.header.frame_id, m.header.stamp = frame_id, stamp
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in o.centre)
+        m.pose.orientation.w = 1.0
+        if isinstance(o, Box):
+            m.scale.x, m.scale.y, m.scale.z = (float(v) for v in o.size)
+        else:
+            m.scale.x = m.scale.y = 2.0 * o.radius
+            m.scale.z = o.height
+        m.color.r = m.color.g = m.color.b = 0.55
+        m.color.a = 0.9
         arr.markers.append(m)
     return arr

@@ -130,10 +130,8 @@ class ImagerNode(Node):
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:
             n, v = vector3(msg.predicted_normal), vector3(msg.predicted_velocity)
-            p = msg.predicted_position
-            self.core.request(
-                int(msg.demand_index), time_to_sec(msg.demand_instant), n, v, [p.x, p.y, p.z]
-            )
+            p = vector3(msg.predicted_position)
+            self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n, v, p)
             self._on_tick()
 
     def _on_image(self, msg: Image) -> None:
@@ -159,9 +157,8 @@ class ImagerNode(Node):
             self._on_tick()
 
     def _beat(self) -> None:
-        self._beat_pub.publish(
-            Header(stamp=self.get_clock().now().to_msg(), frame_id=self.camera_id)
-        )
+        now = self.get_clock().now().to_msg()
+        self._beat_pub.publish(Header(stamp=now, frame_id=self.camera_id))
 
     def _on_tick(self) -> None:
         for obs in self.core.poll(self._now()):
@@ -174,9 +171,8 @@ class ImagerNode(Node):
             for m in annotation_markers(shapes, obs.stamp, frame, obs.demand_index):
                 self._ann_pub.publish(m)
             if obs.status is not ObservationStatus.OK:
-                self.get_logger().warning(
-                    f'demand {obs.demand_index}: {obs.status.name}: {obs.reason}'
-                )
+                why = f'demand {obs.demand_index}: {obs.status.name}: {obs.reason}'
+                self.get_logger().warning(why)
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')

@@ -31,7 +31,10 @@ DEFAULT_TOPICS = (
     '/target_estimate',
     '/target_pose',
     '/object_state',
+    '/object_tracks',
+    '/object_track_markers',
     '/overhead/track',
+    '/overhead/fixes',
     '/diagnostics',
 )
 

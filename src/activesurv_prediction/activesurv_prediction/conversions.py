@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from visualization_msgs.msg import Marker, MarkerArray
+
 from activesurv_common.geometry import quaternion_from_normal
 from activesurv_common.ros.conversions import sec_to_time
 from activesurv_interfaces.msg import DemandHorizon, DemandPoint, ObjectTrack, ObjectTracks
@@ -58,3 +60,28 @@ def tracks_to_msg(
         m.covariance_xy = [float(v) for v in t.covariance.reshape(4)]
         msg.tracks.append(m)
     return msg
+
+
+def track_markers(
+    tracks: list[TrackEstimate], stamp: float, frame_id: str, top_height: float
+) -> MarkerArray:
+    """Every overhead track for viewers: a sphere at its top marker (green once confirmed,
+    amber while tentative) and its object id above it."""
+    arr = MarkerArray()
+    arr.markers.append(Marker(action=Marker.DELETEALL))
+    t = sec_to_time(stamp)
+    for i, k in enumerate(tracks):
+        for kind in (Marker.SPHERE, Marker.TEXT_VIEW_FACING):
+            m = Marker(ns='tracks', id=2 * i + int(kind == Marker.TEXT_VIEW_FACING), type=kind)
+            m.action = Marker.ADD
+            m.header.frame_id, m.header.stamp = frame_id, t
+            m.pose.position.x, m.pose.position.y = float(k.xy[0]), float(k.xy[1])
+            m.pose.position.z = top_height + (0.03 if kind == Marker.TEXT_VIEW_FACING else 0.0)
+            m.pose.orientation.w = 1.0
+            m.scale.x = m.scale.y = m.scale.z = 0.02
+            m.color.r, m.color.g, m.color.b = (0.2, 0.8, 0.2) if k.confirmed else (1.0, 0.7, 0.1)
+            m.color.a = 0.9
+            if kind == Marker.TEXT_VIEW_FACING:
+                m.text = f'object {k.object_id}' if k.object_id else 'tentative'
+            arr.markers.append(m)
+    return arr

@@ -4,6 +4,7 @@ Subscribes: overhead/fix (geometry_msgs/PointStamped, world; from ``overhead_loc
 Publishes: demand_horizon (activesurv_interfaces/DemandHorizon, latched), overhead/track
     (geometry_msgs/PointStamped, each accepted fix), object_tracks
     (activesurv_interfaces/ObjectTracks: every track's filtered estimate at each fix),
+    object_track_markers (visualization_msgs/MarkerArray, latched: the tracks for viewers),
     /diagnostics.
 Parameters: see ``config/predictor.yaml``.
 """
@@ -17,13 +18,14 @@ from typing import Any
 from geometry_msgs.msg import PointStamped, PoseArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import DemandHorizon, ObjectTracks
-from activesurv_prediction.conversions import horizon_to_msg, tracks_to_msg
+from activesurv_prediction.conversions import horizon_to_msg, track_markers, tracks_to_msg
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.session import (
     HorizonUpdate,
@@ -109,6 +111,9 @@ class PredictorNode(Node):
         )
         self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
         self._tracks_pub = self.create_publisher(ObjectTracks, topics.OBJECT_TRACKS, qos.STATE)
+        self._markers_pub = self.create_publisher(
+            MarkerArray, topics.OBJECT_TRACK_MARKERS, qos.LATCHED
+        )
         self._diag_pub = self.create_publisher(diagnostics.DiagnosticArray, *DIAG)
         if self.session.multi is not None:
             self.create_subscription(PoseArray, topics.OVERHEAD_FIXES, self._on_fixes, qos.STATE)
@@ -159,6 +164,9 @@ class PredictorNode(Node):
         )
         self._tracks_pub.publish(
             tracks_to_msg(out.tracks, out.stamp, self.frame_id, c.marker_height)
+        )
+        self._markers_pub.publish(
+            track_markers(out.tracks, out.stamp, self.frame_id, c.marker_height)
         )
         log = self.get_logger()
         for text in out.events:

@@ -18,7 +18,8 @@ from activesurv_sim.board import BoardFixture
 from activesurv_sim.render import Scene, SensorNoise
 from activesurv_sim.rig import load_rig
 from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
-from activesurv_sim.xytable import ObjectState
+from activesurv_sim.stream import ObjectStream
+from activesurv_sim.xytable import ObjectState, XYTable
 
 
 def object_state_msg(
@@ -36,6 +37,21 @@ def object_state_msg(
     msg.velocity.x, msg.velocity.y, msg.velocity.z = (float(v) for v in state.velocity)
     msg.in_workspace = bool(state.present)
     return msg
+
+
+def table_states(table: XYTable | ObjectStream, t: float) -> list[tuple[int, int, ObjectState]]:
+    """(object id, lane, state) of the table at ``t``: one state, or one per lane with several
+    objects at once (id 0: nobody in that lane; an experiment's object is 1)."""
+    if isinstance(table, ObjectStream) and table.at_once > 1:
+        out = []
+        for k in range(table.at_once):
+            oid, state = table.slot_state(k, t)
+            out.append((oid, k, state))
+        return out
+    if isinstance(table, ObjectStream):
+        p = table.pass_at(t)
+        return [(p.id if p is not None else 0, 0, table.state(t))]
+    return [(1, 0, table.state(t))]
 
 
 TABLE_ID = 'xy_table'  # the table as a two-axis stage (commissioning): xy_table/stage/...

@@ -133,9 +133,8 @@ class SimCameraNode(Node):
             self._ahead(t)  # the truth may be planned already
 
     def _on_planned_object(self, msg: ObjectState) -> None:
-        self._ahead(
-            time_to_sec(msg.header.stamp), state=object_state_vector(msg), slot=int(msg.slot)
-        )
+        t, state = time_to_sec(msg.header.stamp), object_state_vector(msg)
+        self._ahead(t, state=state, slot=int(msg.slot))
 
     def _on_planned_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)

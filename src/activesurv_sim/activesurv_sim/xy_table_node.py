@@ -37,9 +37,9 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
-from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
-from activesurv_sim.stream import PATH_KINDS, ObjectStream, table_from_parameters
+from activesurv_sim.stream import PATH_KINDS, table_from_parameters
 from activesurv_sim.xytable import XYTable
 from activesurv_stages.errors import StageError
 
@@ -159,18 +159,10 @@ class XYTableNode(Node):
 
     def _states(self, t: float, stamp: Any) -> list[ObjectStateMsg]:
         """The object states at ``t``: one, or one per lane with several objects at once."""
-        table = self.table
-        if isinstance(table, ObjectStream) and table.at_once > 1:
-            out = []
-            for slot in range(table.at_once):
-                oid, state = table.slot_state(slot, t)
-                out.append(object_state_msg(state, stamp, self.frame_id, oid, slot))
-            return out
-        if isinstance(table, ObjectStream):
-            p = table.pass_at(t)
-            oid = p.id if p is not None else 0
-            return [object_state_msg(table.state(t), stamp, self.frame_id, oid)]
-        return [object_state_msg(table.state(t), stamp, self.frame_id)]
+        return [
+            object_state_msg(st, stamp, self.frame_id, i, k)
+            for i, k, st in table_states(self.table, t)
+        ]
 
     def _on_request(self, msg: CaptureRequest) -> None:
         t = time_to_sec(msg.demand_instant)

@@ -17,6 +17,7 @@ OVERHEAD_FIX = 'overhead/fix'
 OVERHEAD_FIXES = 'overhead/fixes'  # several objects: every top marker of a frame
 OVERHEAD_TRACK = 'overhead/track'
 OBJECT_TRACKS = 'object_tracks'
+OBJECT_TRACK_MARKERS = 'object_track_markers'
 DEMAND_HORIZON = 'demand_horizon'
 # Dispatch
 DISPATCH_PLAN = 'dispatch_plan'

@@ -590,7 +590,8 @@ def _top_view(doc: dict[str, Any], path: Path) -> Path:
     ax.set_aspect('equal')
     ax.set_xlabel('x [m]')
     ax.set_ylabel('y [m] (cameras below, at y < 0)')
-    ax.set_ylim(min(-0.05, *(o['centre'][1] - 0.05 for o in doc.get('obstacles') or [])), 0.22)
+    low = [o['centre'][1] - 0.05 for o in doc.get('obstacles') or []]
+    ax.set_ylim(min([-0.05, *low]), 0.22)
     ax.grid(alpha=0.3)
     if doc['objects']:
         ax.legend(fontsize=7, ncol=4, loc='lower left')

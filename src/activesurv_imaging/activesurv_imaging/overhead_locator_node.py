@@ -97,65 +97,38 @@ class OverheadLocatorNode(Node):
         if self.camera is None:
             self.last_reason = 'waiting for camera_info'
             return
-        if self._fixes_pub is not None:
-            self._all_markers(msg)
-            return
+        args = (self.camera, self.T_world_camera, self.marker_height, self.marker_radius)
         try:
-            fix = overhead_fix(
-                image_to_gray(msg),
-                self.camera,
-                self.T_world_camera,
-                self.marker_height,
-                self.marker_radius,
-            )
+            gray = image_to_gray(msg)
+            # Several objects: every top marker of the frame; else the one marker.
+            found = overhead_fixes(gray, *args) if self._fixes_pub else [overhead_fix(gray, *args)]
         except VisionErrors as exc:
             self.counts['bad_images'] += 1
             self.last_reason = f'bad image: {exc}'
             return
-        if fix.xy is None:
-            self.counts['no_fix'] += 1
-            self.last_reason = fix.reason
-            return
-        self.counts['fixes'] += 1
-        pt = PointStamped()
-        pt.header.stamp = msg.header.stamp
-        pt.header.frame_id = self.frame_id
-        pt.point.x, pt.point.y = (float(c) for c in fix.xy)
-        pt.point.z = self.marker_height
-        self._fix_pub.publish(pt)
-
-    def _all_markers(self, msg: Image) -> None:
-        """Several objects on the table: every top marker of the frame, as one PoseArray
-        (empty when none: the frame was seen and held nothing)."""
-        if self.camera is None or self._fixes_pub is None:
-            return
-        try:
-            fixes = overhead_fixes(
-                image_to_gray(msg),
-                self.camera,
-                self.T_world_camera,
-                self.marker_height,
-                self.marker_radius,
-            )
-        except VisionErrors as exc:
-            self.counts['bad_images'] += 1
-            self.last_reason = f'bad image: {exc}'
-            return
-        out = PoseArray()
-        out.header.stamp = msg.header.stamp
-        out.header.frame_id = self.frame_id
-        for fix in fixes:
+        xys = []
+        for fix in found:
             if fix.xy is None:
                 self.counts['no_fix'] += 1
                 self.last_reason = fix.reason
-                continue
-            self.counts['fixes'] += 1
-            pose = Pose()
-            pose.position.x, pose.position.y = (float(c) for c in fix.xy)
-            pose.position.z = self.marker_height
-            pose.orientation.w = 1.0
-            out.poses.append(pose)
-        self._fixes_pub.publish(out)
+            else:
+                self.counts['fixes'] += 1
+                xys.append(fix.xy)
+        if self._fixes_pub is not None:  # one PoseArray (empty: the frame held no marker)
+            out = PoseArray()
+            out.header.stamp, out.header.frame_id = msg.header.stamp, self.frame_id
+            for xy in xys:
+                pose = Pose()
+                pose.position.x, pose.position.y = (float(c) for c in xy)
+                pose.position.z, pose.orientation.w = self.marker_height, 1.0
+                out.poses.append(pose)
+            self._fixes_pub.publish(out)
+        elif xys:
+            pt = PointStamped()
+            pt.header.stamp, pt.header.frame_id = msg.header.stamp, self.frame_id
+            pt.point.x, pt.point.y = (float(c) for c in xys[0])
+            pt.point.z = self.marker_height
+            self._fix_pub.publish(pt)
 
     def _publish_diagnostics(self) -> None:
         values: dict[str, Any] = dict(self.counts)

@@ -24,27 +24,16 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.experiments.evaluation import observed_visibility
 from activesurv_common.occlusion import Obstacle, obstacles_from_list, plate_box
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
-from activesurv_dispatch.best_pose import Target, best_achievable_pose, camera_frames, view_batch
-from activesurv_dispatch.sensors import Setup, setup_from_dict
-from activesurv_dispatch.visibility import fused_visibility
+from activesurv_dispatch.best_pose import Target, best_achievable_pose, view_batch
+from activesurv_dispatch.sensors import setup_from_dict
 from activesurv_recording.bagio import read_bag, run_info
 
 OBJECT_HALF_SIZE = 0.03  # m: half side of an object's marker plates
 K = 3
-
-
-def _fused(setup: Setup, model: SensorModel, poses: dict[str, Any], target: Target) -> float:
-    Rs = []
-    for c, q in poses.items():
-        s = setup.sensor(c)
-        qq = np.asarray(q, dtype=np.float64)[None, :]
-        _, d, b, _ = view_batch(s, qq, target, setup.marker_radius, model)
-        _, R = camera_frames(s, qq)
-        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
-    return fused_visibility(Rs)
 
 
 def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
@@ -135,12 +124,16 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
                 'assigned': len(d.get('assigned') or []),
                 'visibility': float(d.get('visibility') or 0.0),
                 'clairvoyant_cameras': len(clair),
-                'clairvoyant_visibility': _fused(
-                    setup, model, {c: seen[c].joints for c in clair}, target
+                'clairvoyant_visibility': observed_visibility(
+                    setup, model, {c: seen[c].joints for c in clair}, position, target.normal
                 ),
                 'greedy_cameras_seeing': len(greedy_seen),
-                'greedy_visibility': _fused(
-                    setup, model, {c: blind[c].joints for c in greedy_seen}, target
+                'greedy_visibility': observed_visibility(
+                    setup,
+                    model,
+                    {c: blind[c].joints for c in greedy_seen},
+                    position,
+                    target.normal,
                 ),
             }
         )

@@ -191,6 +191,9 @@ def check(args: argparse.Namespace) -> None:
     seed = _get(args, 'seed')
     if isinstance(seed, int) and seed < 0 and cmd != 'rig':
         raise ConfigError(f'--seed must be >= 0, got {seed}')
+    stations = _get(args, 'stations')
+    if isinstance(stations, int) and stations < 1:
+        raise ConfigError(f'--stations must be >= 1, got {stations}')
     rig_seed = _get(args, 'rig_seed')
     if isinstance(rig_seed, int) and rig_seed < 0:
         raise ConfigError(f'--rig-seed must be >= 0, got {rig_seed}')

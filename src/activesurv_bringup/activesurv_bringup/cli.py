@@ -55,7 +55,14 @@ DEFAULT_RIG_SEED = 1
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
-    """The usage text as written, and every flag's default in its help."""
+    """The usage text as written, and every flag's default in its help (once: a help text
+    that says its default in words keeps its own)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ''
+        if '(default:' in text:
+            return text
+        return super()._get_help_string(action)
 
 
 DDS_PROFILE_HELP = (
@@ -248,6 +255,14 @@ def _build_parser() -> argparse.ArgumentParser:
         default=None,
         help="with --live: the rig's hardware file; its stage bridges (homing) and camera "
         'drivers are started, its camera topics listened to',
+    )
+    com.add_argument(
+        '--stations',
+        type=int,
+        default=None,
+        help='at most this many stage stations per camera, spread over the procedure '
+        '(a quick check after a bump: fewer board views, larger uncertainties in '
+        'commission.json) (default: all, 16 or so per camera)',
     )
 
     lab = _sub(
@@ -567,6 +582,7 @@ def commission(
     live: bool = False,
     cameras: str | None = None,
     hardware: Path | None = None,
+    stations: int | None = None,
 ) -> dict[str, Any]:
     """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one (with
     ``hardware``, the rig that hardware file describes)."""
@@ -583,7 +599,7 @@ def commission(
     def say(text: str) -> None:
         print(f'  commission: {text}', flush=True)
 
-    doc = run_commission(out, the_rig, chosen, say, hardware=hw)
+    doc = run_commission(out, the_rig, chosen, say, hardware=hw, stations=stations)
     say(f'done in {doc["seconds"]:.0f} s -> {out}')
     return doc
 
@@ -764,7 +780,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             args.rig_seed,
         )
     elif args.command == 'commission':
-        commission(args.out, args.rig, args.live, args.cameras, args.hardware)
+        commission(args.out, args.rig, args.live, args.cameras, args.hardware, args.stations)
     elif args.command == 'lab':
         from activesurv_bringup.rig.lab import run_lab
 

@@ -56,6 +56,7 @@ def collect_stations(
     depths: tuple[float, float, float] = (0.02, 0.10, 0.18),
     max_yaw: float = 0.9,
     laterals: tuple[float, ...] = (-0.012, 0.0, 0.012),
+    limit: int | None = None,
 ) -> list[Station]:
     """The stations of one camera: search, centre, then nine board positions each.
 
@@ -66,49 +67,54 @@ def collect_stations(
         fixture: the board on the carriage.
         laterals: the board's shifts along x about the centred place (m); +-12 mm puts it
             against either side of the frame at the middle depth.
+        limit: at most this many stations, spread evenly over the candidates (a quick check
+            of a rig; fewer views, larger uncertainties); None for all.
     """
     board = board_corners(fixture)
     stations = []
+    mid = depths[1] + fixture.offset[1]
     linear = linear_positions if mount.linear_axis is not None else (None,)
-    for s in linear:
-        for aim in aims:
-            mid = depths[1] + fixture.offset[1]
-            q = plan_joints(mount, aim, mid, s)
-            if abs(q[-1]) > max_yaw:
-                continue
-            T = mount.pose_from_joints(q)
-            d = T.R[:, 2]
+    candidates = [plan_joints(mount, aim, mid, s) for s in linear for aim in aims]
+    candidates = [q for q in candidates if abs(q[-1]) <= max_yaw]
+    if limit is not None and limit < len(candidates):
+        if limit < 1:
+            raise ValueError(f'a camera needs at least one station, got {limit}')
+        picked = np.unique(np.linspace(0, len(candidates) - 1, limit).round().astype(int))
+        candidates = [candidates[i] for i in picked]
+    for q in candidates:
+        T = mount.pose_from_joints(q)
+        d = T.R[:, 2]
 
-            def on_axis(ty: float, T: Transform = T, d: Array = d) -> tuple[float, float]:
-                lam = (ty + fixture.offset[1] - T.t[1]) / d[1]
-                return float(T.t[0] + lam * d[0] - fixture.offset[0]), float(lam)
+        def on_axis(ty: float, T: Transform = T, d: Array = d) -> tuple[float, float]:
+            lam = (ty + fixture.offset[1] - T.t[1]) / d[1]
+            return float(T.t[0] + lam * d[0] - fixture.offset[0]), float(lam)
 
-            x0, dist = on_axis(depths[1])
-            shift = None
-            for dx in (0.0, -0.015, 0.015, -0.03, 0.03, -0.045, 0.045):  # search
-                if 0.0 <= x0 + dx <= 0.5:
-                    c = look(q, x0 + dx, depths[1])
-                    if c is not None:  # centre it (image x right is world +x here)
-                        shift = dx - (float(c.mean(axis=0)[0]) - camera.cx) / camera.fx * dist
-                        break
-            if shift is None:
-                continue
-            sightings = []
-            Tc = T.inverse()
-            for ty in depths:
-                xa = on_axis(ty)[0] + shift
-                for lateral in laterals:
-                    tx = xa + lateral
-                    if not 0.0 <= tx <= 0.5:
-                        continue
-                    c = look(q, tx, ty)
-                    if c is None:
-                        continue
-                    Tb = fixture.pose(tx, ty)
-                    world = board @ Tb.R.T + Tb.t
-                    expected = camera.project(world @ Tc.R.T + Tc.t)
-                    sightings.append(BoardSighting(Tb, order_like(c, expected)))
-            stations.append(Station(q, tuple(sightings)))
+        x0, dist = on_axis(depths[1])
+        shift = None
+        for dx in (0.0, -0.015, 0.015, -0.03, 0.03, -0.045, 0.045):  # search
+            if 0.0 <= x0 + dx <= 0.5:
+                c = look(q, x0 + dx, depths[1])
+                if c is not None:  # centre it (image x right is world +x here)
+                    shift = dx - (float(c.mean(axis=0)[0]) - camera.cx) / camera.fx * dist
+                    break
+        if shift is None:
+            continue
+        sightings = []
+        Tc = T.inverse()
+        for ty in depths:
+            xa = on_axis(ty)[0] + shift
+            for lateral in laterals:
+                tx = xa + lateral
+                if not 0.0 <= tx <= 0.5:
+                    continue
+                c = look(q, tx, ty)
+                if c is None:
+                    continue
+                Tb = fixture.pose(tx, ty)
+                world = board @ Tb.R.T + Tb.t
+                expected = camera.project(world @ Tc.R.T + Tc.t)
+                sightings.append(BoardSighting(Tb, order_like(c, expected)))
+        stations.append(Station(q, tuple(sightings)))
     return stations
 
 

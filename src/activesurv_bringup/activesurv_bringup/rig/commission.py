@@ -294,6 +294,7 @@ def commission_dynamic(
     start: CameraModel,
     nominal_mount: CameraMount,
     fixture: BoardFixture,
+    stations_limit: int | None = None,
 ) -> tuple[CameraModel, CameraMount, dict[str, Any]]:
     """One dynamic camera: stations, fit, and the eq. C1 check; returns (model, mount, report).
 
@@ -301,8 +302,9 @@ def commission_dynamic(
         look: shows the board at a table position to the camera at stage positions.
         start: the intrinsics to start from (what the driver says, or nominal).
         nominal_mount: the mount as designed.
+        stations_limit: at most this many stations (None: every one of the procedure).
     """
-    stations = collect_stations(look, start, nominal_mount, fixture)
+    stations = collect_stations(look, start, nominal_mount, fixture, limit=stations_limit)
     board = board_corners(fixture)
     fit = commission_camera(start, nominal_mount, stations, board)
     model, mount = fit.camera, fit.mount
@@ -475,6 +477,7 @@ def commission_all(
     rig: Rig | None,
     progress: Progress,
     name: str,
+    stations: int | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
 
@@ -482,6 +485,7 @@ def commission_all(
         dynamic: per camera id, how it looks at the board and the intrinsics to start from.
         overhead_look: the overhead camera looking at the top board at a table position.
         rig: the simulated truth, to report each estimate's error (None when live).
+        stations: at most this many stations per dynamic camera (None: all).
     """
     nominal_cal = nominal().truth()
     fixture = BoardFixture()
@@ -494,7 +498,9 @@ def commission_all(
             continue
         t0 = time.monotonic()
         look, start = dynamic(cid)
-        model, mount, rep = commission_dynamic(look, start, nominal_cal.mounts[cid], fixture)
+        model, mount, rep = commission_dynamic(
+            look, start, nominal_cal.mounts[cid], fixture, stations
+        )
         models[cid], mounts[cid] = model, mount
         rep['commissioned'] = True
         rep['seconds'] = round(time.monotonic() - t0, 1)
@@ -545,6 +551,7 @@ def run_commission(
     progress: Progress = print,
     startup_timeout: float = 60.0,
     hardware: Hardware | None = None,
+    stations: int | None = None,
 ) -> dict[str, Any]:
     """Commission the rig into ``out`` (new or empty); returns ``commission.json``.
 
@@ -557,6 +564,7 @@ def run_commission(
             cameras' topics listened to.
         cameras: the dynamic cameras to commission (default: all); the others keep nominal
             values, marked so in ``commission.json``.
+        stations: at most this many stations per camera (default: all of the procedure).
 
     Raises:
         ConfigError: for unknown cameras; NodeDiedError: if the graph does not answer.
@@ -612,6 +620,7 @@ def run_commission(
             rig,
             progress,
             str(out),
+            stations,
         )
         report['seconds'] = round(time.monotonic() - started, 1)
         write_calibration(out, cal, report)

@@ -13,7 +13,8 @@ calibration (so errors are the method's, not a calibration's):
   table=PORT``);
 * ``surveil_ok_fraction``, ``surveil_latency_median_ms``, ``surveil_latency_p90_ms``,
   ``surveil_demands``: ``surveil --hardware`` for ``ACTIVESURV_BENCH_SURVEIL_S`` seconds (600 by
-  default: the issue's 10 minutes).
+  default: the issue's 10 minutes); ``surveil_not_ok`` and ``setA_fast_not_ok`` list the demands
+  short of ok (or of k cameras) with their reasons.
 """
 
 from __future__ import annotations
@@ -83,6 +84,11 @@ def _figures(doc: dict[str, Any]) -> dict[str, Any]:
         'error_mm': round(1e3 * float(np.median(errors)), 4) if errors else None,
         'offset_median_ms': round(1e3 * float(np.median(offsets)), 2) if offsets else None,
         'offset_max_ms': round(1e3 * max(offsets), 2) if offsets else None,
+        'not_ok': [
+            f'{r["index"]} {r["status"]}: {str(r.get("reason") or "")[:160]}'
+            for r in rows
+            if r['status'] != 'ok' or len(r['cameras']) < 3
+        ],
     }
 
 
@@ -138,5 +144,12 @@ def run() -> dict[str, Any]:
         ),
         surveil_latency_median_ms=round(1e3 * statistics.median(lat), 1) if lat else None,
         surveil_latency_p90_ms=round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None,
+        # what the shortfall is made of: each demand not ok, with its reason
+        surveil_not_ok=[
+            f'{x["index"]} {x["status"]}: {str(x.get("reason") or "")[:160]}'
+            for x in session['demands']
+            if x['status'] != 'ok'
+        ],
+        setA_fast_not_ok=corrected['not_ok'],
     )
     return out

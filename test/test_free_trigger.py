@@ -123,3 +123,35 @@ def test_a_dropped_nearest_frame_gives_its_neighbour_corrected() -> None:
     assert 0.5 / RATE < abs(obs.frame_offset) <= 1.25 / RATE
     assert obs.position is not None
     assert np.linalg.norm(obs.position - marker(T_J)) < 0.3e-3
+
+
+def test_two_frames_lost_in_a_row_still_answer_with_a_wider_covariance() -> None:
+    # A stalled machine loses the frames either side of the instant (seen in the lab: frames
+    # 61 ms before and 50 ms after); the nearest that came is taken, moved to the instant, and
+    # its x-y variance grows by (velocity_std * offset)^2.
+    c, ref = core(), core()
+    for k in (c, ref):
+        k.request(0, T_J, NORMAL, V)
+    k0 = int(np.floor((T_J - PHASE) * RATE))
+    stamps = sorted((PHASE + k / RATE for k in range(k0 - 4, k0 + 5)), key=lambda s: abs(s - T_J))
+    feed(ref, stamps[:1])
+    feed(c, [s for s in stamps if abs(s - T_J) > 1.5 / RATE])  # the nearest three lost
+    (obs,) = c.poll(T_J + 0.2)
+    (near,) = ref.poll(T_J + 0.2)
+    assert obs.status is ObservationStatus.OK, obs.reason
+    assert 1.5 / RATE < abs(obs.frame_offset) <= 2.25 / RATE
+    assert obs.position is not None
+    assert obs.covariance is not None
+    assert near.covariance is not None
+    assert np.linalg.norm(obs.position - marker(T_J)) < 0.4e-3
+    grown = obs.covariance[0, 0] - near.covariance[0, 0]
+    expected = (0.002 * obs.frame_offset) ** 2 - (0.002 * near.frame_offset) ** 2
+    assert grown == pytest.approx(expected, rel=0.05, abs=1e-12)
+    assert obs.covariance[2, 2] == pytest.approx(near.covariance[2, 2], rel=1e-6)
+    # Three lost in a row is more than it reaches: an explicit failure.
+    far = core()
+    far.request(0, T_J, NORMAL, V)
+    feed(far, [s for s in stamps if abs(s - T_J) > 2.3 / RATE])
+    (none,) = far.poll(T_J + 2.0)
+    assert none.status is ObservationStatus.NO_IMAGE
+    assert 'nearest' in none.reason

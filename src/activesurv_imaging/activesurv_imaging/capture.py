@@ -7,11 +7,14 @@ states interpolated there.
 Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j``
 itself. A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame
 nearest ``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It
-is within half a frame period unless that frame was dropped; then its neighbour a period away
-is taken (up to 1.25 periods, for the stamps' jitter). Its offset ``frame stamp - t_j`` is
-reported, and the marker position is moved to ``t_j`` along the object's predicted velocity
-(``v (t_j - t_frame)``). A frame's stamp minus ``exposure_delay`` is its exposure instant (a
-driver that stamps frames on arrival stamps them after exposure and read-out).
+is within half a frame period unless that frame was dropped; then the nearest that came is
+taken, up to ``free_reach`` periods away (2.25: two frames in a row lost, as when the machine
+stalls, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is reported, the marker
+position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``),
+and its covariance grows by ``(velocity_std (t_j - t_frame))^2`` in x and y: what the
+prediction's velocity does not know of the motion. A frame's stamp minus ``exposure_delay``
+is its exposure instant (a driver that stamps frames on arrival stamps them after exposure and
+read-out).
 
 It waits (returns nothing yet) while the frame, the camera_info or a stage state at or after
 the frame's stamp is still to come, and gives up with an explicit failure ``frame_timeout``
@@ -85,6 +88,8 @@ class ImagerConfig:
     frame_rate: float = 0.0
     exposure_delay: float = 0.0
     motion_correction: bool = True
+    free_reach: float = 2.25
+    velocity_std: float = 0.002
     obstacles: tuple[Obstacle, ...] = ()
     several_objects: bool = False
 
@@ -97,14 +102,18 @@ class ImagerConfig:
             raise ImagingError(f'free-running needs frame_rate > 0, not {self.frame_rate}')
         if not (math.isfinite(self.exposure_delay) and self.exposure_delay >= 0.0):
             raise ImagingError(f'exposure_delay must be >= 0 s, got {self.exposure_delay}')
+        if not (math.isfinite(self.free_reach) and self.free_reach >= 0.5):
+            raise ImagingError(f'free_reach must be >= 0.5 periods, got {self.free_reach}')
+        if not (math.isfinite(self.velocity_std) and self.velocity_std >= 0.0):
+            raise ImagingError(f'velocity_std must be >= 0 m/s, got {self.velocity_std}')
 
     @property
     def tolerance(self) -> float:
         """Largest |exposure - demand instant| accepted: half a period when free-running."""
         if self.trigger == 'free':
             # The nearest frame is within half a period (plus the stamps' jitter); when it was
-            # dropped, its neighbour a period away is still taken (and moved to the instant).
-            return 1.25 / self.frame_rate
+            # dropped, the nearest that came is still taken (and moved to the instant).
+            return self.free_reach / self.frame_rate
         return self.frame_tolerance
 
 
@@ -288,8 +297,16 @@ class CaptureCore(Generic[F]):
         ):
             obs = replace(obs, reason=f'occluded: an obstacle stands in the way ({obs.reason})')
         if c.motion_correction and r.velocity is not None and obs.position is not None:
-            shift = r.velocity * (r.demand_time - stamp)
-            obs = replace(obs, position=obs.position + shift, motion_correction=shift)
+            dt = r.demand_time - stamp
+            shift = r.velocity * dt
+            cov = obs.covariance
+            if cov is not None and c.velocity_std > 0.0 and dt != 0.0:
+                cov = cov.copy()
+                idx = np.arange(2)
+                cov[idx, idx] += (c.velocity_std * dt) ** 2
+            obs = replace(
+                obs, position=obs.position + shift, motion_correction=shift, covariance=cov
+            )
         return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
 
 

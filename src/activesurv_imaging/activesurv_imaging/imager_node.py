@@ -61,6 +61,10 @@ PARAMS = (
     Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
+    Param(
+        'free_reach', 2.25, 'free-running: frame periods the taken frame may be off', minimum=0.5
+    ),
+    Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),
     Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
     Param('several_objects', False, 'measure the marker nearest the predicted one of several'),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),

@@ -162,6 +162,11 @@ class DemandBook:
     prediction until it is ``freeze`` seconds away, then stays (the dispatcher must know when
     to trigger). Only instants whose predicted point lies in ``region`` (x_min, x_max, y_min,
     y_max; None: anywhere) are demanded: where the cameras cannot serve, nothing is promised.
+    A promise is kept: an instant once demanded stays demanded while its predicted point lies
+    within ``margin`` of the region, and for good from ``freeze`` seconds before it (the
+    cameras are on their way). Without that, an object leaving across the region's edge near
+    an instant made the demand come and go with the prediction's noise, and the dispatcher
+    sent its cameras back and forth until the instant came with them in between.
 
     Raises:
         PredictionError: for an interval <= 0 with no lines, or bad lines/region.
@@ -173,6 +178,7 @@ class DemandBook:
         lines_x: Sequence[float] = (),
         region: Sequence[float] | None = None,
         freeze: float = 1.0,
+        margin: float = 0.01,
     ) -> None:
         lines = tuple(float(v) for v in lines_x)
         if not all(math.isfinite(v) for v in lines) or not math.isfinite(interval):
@@ -185,12 +191,14 @@ class DemandBook:
         self.lines = lines
         self.region = None if region is None else tuple(float(v) for v in region)
         self.freeze = freeze
+        self.margin = margin
         self.object_id = 0
         self.objects = 0
         self.entered: float | None = None
         self._next_index = 0
         self._index: dict[tuple[str, float], int] = {}
         self._frozen: dict[tuple[str, float], float] = {}
+        self._promised: set[tuple[str, float]] = set()
 
     def start(self, entered: float) -> int:
         """A new object was confirmed; its track began at ``entered``. Returns its id."""
@@ -199,6 +207,7 @@ class DemandBook:
         self.entered = entered
         self._index.clear()
         self._frozen.clear()
+        self._promised.clear()
         return self.object_id
 
     def end(self) -> None:
@@ -207,12 +216,24 @@ class DemandBook:
         self.entered = None
         self._index.clear()
         self._frozen.clear()
+        self._promised.clear()
 
-    def _inside(self, xy: Array) -> bool:
+    def _inside(self, xy: Array, margin: float = 0.0) -> bool:
         if self.region is None:
             return True
         x0, x1, y0, y1 = self.region
-        return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
+        return bool(x0 - margin <= xy[0] <= x1 + margin and y0 - margin <= xy[1] <= y1 + margin)
+
+    def _demanded(self, key: tuple[str, float], t: float, now: float, xy: Array) -> bool:
+        if key in self._promised:
+            if t - now <= self.freeze or self._inside(xy, self.margin):
+                return True
+            self._promised.discard(key)  # the object will be well outside: withdrawn
+            return False
+        if self._inside(xy):
+            self._promised.add(key)
+            return True
+        return False
 
     def upcoming(self, predictor: Predictor, now: float, m: int) -> list[tuple[int, float]]:
         """(index, instant) of the current object's next ``m`` demands after ``now``."""
@@ -242,7 +263,7 @@ class DemandBook:
             if key not in self._index:
                 self._index[key] = self._next_index
                 self._next_index += 1
-            if self._inside(predictor.predict_mean(t)):
+            if self._demanded(key, t, now, predictor.predict_mean(t)):
                 out.append((self._index[key], t))
         return out
 

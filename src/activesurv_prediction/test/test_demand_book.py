@@ -42,6 +42,26 @@ def test_only_points_in_the_demand_region_are_demanded() -> None:
     assert ts == pytest.approx([4.0, 5.0])  # x = 0.18, 0.20; 0.22 is out
 
 
+def test_a_demand_once_promised_does_not_come_and_go_at_the_region_edge() -> None:
+    # The instant at t = 5 falls at x = 0.20: inside a region ending at 0.205. A filter that
+    # then sees the object 6 mm further on puts it just outside; the promise stays (within
+    # the margin), where a fresh look would drop it.
+    book = DemandBook(interval=1.0, region=[0.0, 0.205, 0.0, 0.2], freeze=0.5)
+    book.start(0.0)
+    assert [t for _, t in book.upcoming(_moving(0.02), 3.0, 5)] == pytest.approx([4.0, 5.0])
+    ahead = _moving(0.02, x0=0.106)
+    assert [t for _, t in book.upcoming(ahead, 3.0, 5)] == pytest.approx([4.0, 5.0])
+    fresh = DemandBook(interval=1.0, region=[0.0, 0.205, 0.0, 0.2], freeze=0.5)
+    fresh.start(0.0)
+    assert [t for _, t in fresh.upcoming(ahead, 3.0, 5)] == pytest.approx([4.0])
+    # Well outside (beyond the margin) and not yet close: withdrawn ...
+    far = _moving(0.02, x0=0.13)
+    assert [t for _, t in book.upcoming(far, 3.0, 5)] == pytest.approx([4.0])
+    # ... but within the freeze time of its instant, a promise is kept whatever comes.
+    book.upcoming(_moving(0.02), 4.6, 5)  # promised again
+    assert [t for _, t in book.upcoming(far, 4.6, 5)] == pytest.approx([5.0])
+
+
 def test_crossing_lines_are_demands_that_freeze_before_their_instant() -> None:
     p = _moving(0.02)
     t_cross = crossing_time(p, 0.25, 3.0)

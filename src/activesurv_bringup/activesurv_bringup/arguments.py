@@ -170,6 +170,29 @@ def hardware(args: argparse.Namespace) -> None:
         raise ConfigError(f'--hardware runs on the real rig: {", ".join(clash)} cannot apply')
 
 
+def scene(args: argparse.Namespace) -> None:
+    """Set C is a scripted session of the node graph: what only Sets A and B take is refused."""
+    clash = [
+        flag
+        for flag, bad in (
+            ('--mode lockstep', _get(args, 'mode') == 'lockstep'),
+            ('--trajectory', _get(args, 'trajectory')),
+            ('--expect', _get(args, 'expect')),
+            ('--fault', _get(args, 'fault')),
+            ('--kill', _get(args, 'kill')),
+            ('--hosts netns', _get(args, 'hosts') == 'netns'),
+            ('--hardware', _get(args, 'hardware')),
+            ('--compose', _get(args, 'compose')),
+        )
+        if bad
+    ]
+    if clash:
+        raise ConfigError(
+            f'--set C (two objects and a post, run as a node-graph session) does not take '
+            f'{", ".join(clash)}: they are for Sets A and B'
+        )
+
+
 def _get(args: argparse.Namespace, name: str) -> Any:
     return getattr(args, name, None)
 
@@ -198,6 +221,8 @@ def check(args: argparse.Namespace) -> None:
     if isinstance(rig_seed, int) and rig_seed < 0:
         raise ConfigError(f'--rig-seed must be >= 0, got {rig_seed}')
     hardware(args)
+    if cmd == 'experiment' and _get(args, 'set_name') == 'C':
+        scene(args)
     if cmd == 'lab':
         controllers(_get(args, 'controller') or [])
         positive('--frame-rate', _get(args, 'frame_rate'))

@@ -83,7 +83,12 @@ def _build_parser() -> argparse.ArgumentParser:
 
     exp = _sub(sub, 'experiment', help="run one of the paper's experiments")
     exp.add_argument(
-        '--set', dest='set_name', required=True, choices=('A', 'B'), help="the paper's set"
+        '--set',
+        dest='set_name',
+        required=True,
+        choices=('A', 'B', 'C'),
+        help="the paper's Set A or B, or ours, C: two objects at once and a post in the cell "
+        '(graph mode; docs/multi-object.md)',
     )
     exp.add_argument('--system', required=True, choices=SYSTEMS, help='camera motion class')
     exp.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
@@ -453,7 +458,11 @@ def experiment(
         result = load_run(out)
         say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
         return result
+    from activesurv_bringup.experiments.scenes import SCENES
+
     choice = choose(rig, calibration, rig_seed, cache_dir(), say)
+    if set_name in SCENES:
+        return _scene(set_name, system, out, seed, choice, opts, say)
     exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
     exp.config['predictor']['model'] = predictor
     started = time.monotonic()
@@ -492,6 +501,42 @@ def experiment(
             say(f'Fast DDS profile {opts.dds_profile}')
         run_graph(exp, out, opts, progress=say)
         doc = load_run(out)
+    say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
+    return doc
+
+
+def _scene(
+    set_name: str,
+    system: str,
+    out: Path,
+    seed: int,
+    choice: Any,
+    opts: RunOptions,
+    say: Callable[[str], None],
+) -> dict[str, Any]:
+    """A named set of our own (``C``): its scripted objects and obstacles, run as a short
+    surveillance session on the run's rig (the same graph, results and report)."""
+    from activesurv_bringup.experiments.scenes import load_scene
+    from activesurv_bringup.experiments.surveil import SurveilOptions, run_surveil, session_table
+
+    scene = load_scene(set_name)
+    session = SurveilOptions(
+        duration=scene.duration,
+        demand_interval=scene.demand_interval,
+        system=system,
+        seed=seed,
+        rig=scene.on(choice),
+        objects_at_once=scene.lanes,
+        script=scene.objects,
+        set_name=set_name,
+    )
+    say(
+        f'{scene.description}: {len(scene.objects)} objects, {len(scene.obstacles)} obstacles, '
+        f'{scene.duration:.0f} s'
+    )
+    started = time.monotonic()
+    doc = run_surveil(out, session, opts, say)
+    print(session_table(doc), flush=True)
     say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
     return doc
 

@@ -15,6 +15,7 @@ its state is parked far outside every camera's view (``in_workspace`` false).
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -204,6 +205,10 @@ class ObjectStream:
         model: the markers relative to the carriage.
         position_error: the rig's table error map, as for :class:`XYTable` (None: exact).
         at_once: how many objects may be on the table at once (its lanes).
+        script: the objects themselves instead of drawn ones (a named experiment set's
+            scene): each ``{enter: s, slot: lane, path: {type: line|parabola, points:
+            [...]}}``, its path as given (not narrowed into a lane); no object after them.
+            ``at_once`` becomes the number of lanes the script uses.
     """
 
     def __init__(
@@ -218,7 +223,11 @@ class ObjectStream:
         model: ObjectModel | None = None,
         position_error: Callable[[float, float], Array] | None = None,
         at_once: int = 1,
+        script: Sequence[Mapping[str, Any]] = (),
     ) -> None:
+        scripted = scripted_passes(script, speed, acceleration) if script else []
+        if scripted:
+            at_once = max(p.slot for p in scripted) + 1
         if not (math.isfinite(arrival_interval) and arrival_interval > 0.0 and gap >= 0.0):
             raise ConfigError('arrival_interval must be > 0 s and gap >= 0 s')
         if not 1 <= at_once <= MAX_AT_ONCE:
@@ -240,6 +249,9 @@ class ObjectStream:
         self.position_error = position_error
         self.at_once = at_once
         self._lane_free = [first_entry] * at_once  # when each lane may take its next object
+        self.scripted = bool(scripted)
+        if scripted:
+            self.passes = scripted
 
     def _lane(self, path: TimedPath, slot: int) -> TimedPath:
         """The path narrowed into lane ``slot`` (y scaled into its band; slower, never
@@ -252,6 +264,8 @@ class ObjectStream:
         return TimedPath(path.t, np.column_stack([path.xy[:, 0], y]))
 
     def _extend(self, t: float) -> None:
+        if self.scripted:
+            return  # the script's objects, and no more
         while not self.passes or self.passes[-1].entered <= t:
             kind = str(self.rng.choice(self.kinds))
             path = random_path(kind, self.rng, self.speed, self.acceleration)
@@ -304,6 +318,47 @@ class ObjectStream:
         return self.model.at(xy, v, moving, p is not None)
 
 
+def scripted_passes(
+    script: Sequence[Mapping[str, Any]], speed: float = 0.02, acceleration: float = 0.02
+) -> list[ObjectPass]:
+    """The passes of a scripted stream (see :class:`ObjectStream`), in order of entry.
+
+    Raises:
+        ConfigError: for a bad entry, lane or path, or two objects in one lane at once.
+    """
+    passes = []
+    for i, o in enumerate(sorted(script, key=lambda o: float(o.get('enter', math.nan)))):
+        where = f'scripted object {i + 1}'
+        enter, slot = float(o.get('enter', math.nan)), o.get('slot', 0)
+        if not (math.isfinite(enter) and enter >= 0.0):
+            raise ConfigError(f'{where}: enter must be a time >= 0 s, got {o.get("enter")!r}')
+        if not (isinstance(slot, int) and 0 <= slot < MAX_AT_ONCE):
+            raise ConfigError(f'{where}: slot must be a lane 0..{MAX_AT_ONCE - 1}, got {slot!r}')
+        spec = o.get('path')
+        if not isinstance(spec, Mapping) or spec.get('type') not in ('line', 'parabola'):
+            raise ConfigError(f'{where}: path must be {{type: line|parabola, points: [...]}}')
+        path = named_path(str(spec['type']), list(spec.get('points', ())), speed, acceleration)
+        check_in_table(path.xy, where)
+        passes.append(ObjectPass(i + 1, str(spec['type']), enter, path, slot))
+    for a in passes:
+        for b in passes:
+            if a.id < b.id and a.slot == b.slot and b.entered <= a.left:
+                raise ConfigError(
+                    f'scripted objects {a.id} and {b.id} share lane {a.slot} at once'
+                )
+    return passes
+
+
+def _script(text: str) -> list[Mapping[str, Any]]:
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f'stream_script is not JSON: {exc}') from None
+    if not isinstance(doc, list) or not all(isinstance(o, dict) for o in doc):
+        raise ConfigError('stream_script must be a JSON list of objects')
+    return doc
+
+
 def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
     """The xy table of an ``xy_table`` node's parameters: one programmed path, or a stream.
 
@@ -332,6 +387,7 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
             model=model,
             position_error=error,
             at_once=int(p.get('objects_at_once', 1)),
+            script=_script(str(p.get('stream_script') or '[]')),
         )
     path = named_path(
         str(p['path_type']), list(p['path_points']), speed, accel, str(p['csv_file'])

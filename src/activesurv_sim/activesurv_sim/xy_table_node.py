@@ -74,6 +74,7 @@ PARAMS = (
     Param('arrival_interval', 30.0, "stream: s from one object's entry to the next", above=0.0),
     Param('path_kinds', list(PATH_KINDS), 'stream: path kinds to draw from'),
     Param('objects_at_once', 1, 'stream: objects on the table at once (lanes)', minimum=1),
+    Param('stream_script', '', 'stream: JSON list of scripted objects instead of drawn ones'),
     Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
 )
 

@@ -79,3 +79,43 @@ def test_bad_stream_settings_are_refused() -> None:
         ObjectStream(0, kinds=['zigzag'])
     with pytest.raises(ConfigError):
         random_path('zigzag', np.random.default_rng(0))
+
+
+def test_a_scripted_stream_has_exactly_its_objects_in_their_lanes() -> None:
+    from activesurv_sim.stream import table_from_parameters
+
+    script = [
+        {'enter': 3.0, 'slot': 1, 'path': {'type': 'line', 'points': [0.47, 0.15, 0.03, 0.15]}},
+        {'enter': 1.0, 'slot': 0, 'path': {'type': 'line', 'points': [0.03, 0.05, 0.47, 0.05]}},
+    ]
+    s = ObjectStream(0, script=script)
+    assert s.at_once == 2
+    assert [(p.id, p.slot, p.entered) for p in s.passes] == [(1, 0, 1.0), (2, 1, 3.0)]
+    assert [p.id for p in s.passes_at(5.0)] == [1, 2]
+    oid, state = s.slot_state(1, 5.0)
+    assert oid == 2
+    assert state.top[0] < 0.47
+    assert s.passes_at(1000.0) == []
+    assert len(s.passes) == 2
+    # The same from an xy_table node's parameters (a JSON list), and bad scripts refused.
+    params = {
+        'side_offset': [0.0, -0.03, -0.03], 'side_normal': [0.0, -1.0, 0.0], 'top_height': 0.08,
+        'speed': 0.02, 'acceleration': 0.02, 'path_type': 'stream', 'stream_seed': 0,
+        'arrival_interval': 30.0, 'start_time': 1.0, 'path_kinds': list(PATH_KINDS),
+        'stream_script': '[{"enter": 1.0, "slot": 0, "path": {"type": "line", '
+        '"points": [0.03, 0.05, 0.47, 0.05]}}]',
+    }  # fmt: skip
+    table = table_from_parameters(params)
+    assert isinstance(table, ObjectStream)
+    assert len(table.passes) == 1
+    for bad, match in (
+        ('not json', 'JSON'),
+        ('[{"enter": -1, "path": {"type": "line", "points": [0, 0, 1, 0]}}]', 'enter'),
+        ('[{"enter": 1, "path": {"type": "line", "points": [0.1, 0.1, 0.9, 0.1]}}]', 'leaves'),
+        ('[{"enter": 1, "slot": 7, "path": {"type": "line", "points": [0, 0, 1, 0]}}]', 'slot'),
+    ):
+        with pytest.raises(ConfigError, match=match):
+            table_from_parameters({**params, 'stream_script': bad})
+    twice = [script[1], {**script[1], 'enter': 5.0}]
+    with pytest.raises(ConfigError, match='share lane'):
+        ObjectStream(0, script=twice)

@@ -49,7 +49,7 @@ from activesurv_common.timeseries import TimeSeries
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.bagio import read_bag, run_info
-from activesurv_sim.stream import MAX_AT_ONCE, PATH_KINDS, ObjectStream
+from activesurv_sim.stream import MAX_AT_ONCE, PATH_KINDS, ObjectStream, scripted_passes
 
 # Where the Set A cameras can serve (their placement covers the paper's tracking region).
 DEMAND_REGION = (0.10, 0.40, 0.0, 0.2)
@@ -75,6 +75,10 @@ class SurveilOptions:
             truth.
         objects_at_once: objects on the table at once (lanes; their arrivals overlap, one
             every ``arrival_interval`` / N s).
+        script: scripted objects instead of drawn ones (a named set's scene; see
+            :class:`~activesurv_sim.stream.ObjectStream`); ``objects_at_once`` must be the
+            number of lanes it uses.
+        set_name: the named experiment set the session runs (``experiment --set C``), if any.
     """
 
     duration: float | None = None
@@ -89,6 +93,8 @@ class SurveilOptions:
     path_kinds: tuple[str, ...] = PATH_KINDS
     rig: RigChoice | None = None  # the simulated hardware and what the system is told
     objects_at_once: int = 1
+    script: tuple[dict[str, Any], ...] = ()
+    set_name: str | None = None
 
     def __post_init__(self) -> None:
         if not 1 <= self.objects_at_once <= MAX_AT_ONCE:
@@ -121,6 +127,13 @@ class SurveilOptions:
             raise ConfigError(
                 f'path kinds must be among {PATH_KINDS}, got {list(self.path_kinds)}'
             )
+        if self.script:
+            lanes = {p.slot for p in scripted_passes(self.script)}  # refuses a bad script
+            if self.objects_at_once != max(lanes) + 1:
+                raise ConfigError(
+                    f'the script uses {max(lanes) + 1} lanes; objects at once '
+                    f'{self.objects_at_once}'
+                )
 
 
 def parse_demand_at(texts: Sequence[str]) -> tuple[float, ...]:
@@ -157,7 +170,9 @@ def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
             'at_once': int(s.objects_at_once),
             'speed': float(obj['speed']),
             'acceleration': float(obj['acceleration']),
+            **({'script': list(s.script)} if s.script else {}),
         },
+        **({'set': s.set_name} if s.set_name else {}),
         'demands': {
             'mode': 'lines' if s.demand_at else 'interval',
             'interval': s.demand_interval,
@@ -234,6 +249,8 @@ def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> lis
             )
             if spec.name == 'xy_table':  # (a real table carries one object)
                 p['objects_at_once'] = int(s.objects_at_once)
+                if s.script:
+                    p['stream_script'] = json.dumps(list(s.script))
             p.pop('path_points', None)
             p.pop('csv_file', None)
         elif spec.name == 'fusion':
@@ -328,6 +345,7 @@ def run_surveil(
         )
     doc = evaluate_surveil(bag)
     (out_dir / 'results.json').write_text(json.dumps(doc, indent=2) + '\n')
+    progress(f'report: {write_surveil_report(doc, out_dir)}')
     return doc
 
 
@@ -358,6 +376,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
         speed=float(st['speed']),
         acceleration=float(st['acceleration']),
         at_once=int(st.get('at_once', 1)),
+        script=st.get('script', ()),
     )
 
     def truth_id(t: float) -> int:
@@ -465,6 +484,7 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     )
     return {
         'mode': 'surveil',
+        **({'set': info['set']} if info.get('set') else {}),
         'system': info.get('system'),
         'seed': info.get('seed'),
         'demand_mode': info['demands']['mode'],
@@ -632,12 +652,23 @@ def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     plt.close(fig)
     top = _top_view(doc, out_dir / 'scene_top.png')
     s = doc['summary']
+    title = f'Set {doc["set"]}' if doc.get('set') else 'continuous surveillance'
+    gospa = s.get('gospa_mean')
+    blocked = sum(1 for d in doc['demands'] if d.get('occluded'))
     lines = [
-        '# activesurv continuous surveillance',
+        f'# activesurv {title}',
         '',
         f'{s["objects"]} objects, {s["demands"]} demands ({doc["demand_mode"]}), '
         f'{s["ok"]} ok, over {doc["simulated_seconds"]:.0f} s of simulated time; '
-        f'system {doc["system"]}, seed {doc["seed"]}. Failed demands:',
+        f'system {doc["system"]}, seed {doc["seed"]}; {len(doc.get("obstacles") or [])} '
+        'obstacles in the cell.',
+        '',
+        f'Overhead tracking: at most {s.get("max_objects_at_once")} objects at once, '
+        f'{s.get("id_switches")} id switches, GOSPA mean '
+        + ('-' if gospa is None else f'{1e3 * gospa:.2f} mm')
+        + f'. Demands with an assigned camera whose view was blocked at the instant: {blocked}.',
+        '',
+        'Failed demands:',
         '',
     ]
     failed = [d for d in doc['demands'] if d['status'] != 'ok']

@@ -28,6 +28,7 @@ def commissioned(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     save_rig(perturb_rig(nominal(), 11), rig)
     out = root / 'cal'
     cmd = [ACTIVESURV, 'commission', '--rig', str(rig), '--out', str(out), '--cameras', 'cam3']
+    cmd += ['--stations', '3']  # of cam3's 6: the accuracy holds (measured on three rigs)
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
     assert 'cam3:' in r.stdout

@@ -1,15 +1,26 @@
 """Set C, our named set beside the paper's A and B: two objects at once crossing in opposite
 directions and a post in the cell, run as a short node-graph session at rtf 1
-(``experiment --set C``): the results contract of a session with the set's name, every demand
-of one of the two objects, no assigned camera blocked, the tracks kept apart, and the report
-with the scene from above."""
+(``experiment --set C``), started as a user on a lab's network would, without
+``ROS_DOMAIN_ID``.
+
+* The run never reaches a real rig: it takes a free DDS domain of its own, so nothing it
+  publishes (stage goals above all) appears on the default domain 0, where a lab's
+  ``stage_bridge`` nodes would listen.
+* The results contract of a session with the set's name: every demand of one of the two
+  objects, no assigned camera blocked, the tracks kept apart, and the report with the scene
+  from above.
+"""
 
 from __future__ import annotations
 
 import json
+import os
+import re
 import subprocess
 import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -17,15 +28,54 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow]
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
 
-def test_set_c_two_objects_and_a_post(tmp_path: Path) -> None:
-    out = tmp_path / 'C_fast'
-    r = subprocess.run(
+@pytest.fixture(scope='module')
+def set_c(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, set[str], int]:
+    import rclpy
+    from rclpy.context import Context
+
+    out = tmp_path_factory.mktemp('set_c') / 'C_fast'
+    env = dict(os.environ)
+    env.pop('ROS_DOMAIN_ID')
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=0)
+    watcher = rclpy.create_node('rig_side_watcher', context=ctx)
+    seen: set[str] = set()
+    run = subprocess.Popen(
         [ACTIVESURV, 'experiment', '--set', 'C', '--system', 'fast', '--calibration', 'truth',
          '--out', str(out)],
-        capture_output=True, text=True, timeout=300,
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    doc = json.loads((out / 'results.json').read_text())
+    try:
+        deadline = time.monotonic() + 300.0
+        while run.poll() is None and time.monotonic() < deadline:
+            seen.update(name for name, _ in watcher.get_topic_names_and_types())
+            time.sleep(0.5)
+        text = run.communicate(timeout=60)[0]
+    finally:
+        if run.poll() is None:
+            run.kill()
+        watcher.destroy_node()
+        rclpy.shutdown(context=ctx)
+    return out, text, seen, run.returncode
+
+
+def test_a_simulated_run_without_a_domain_stays_off_domain_0(
+    set_c: tuple[Path, str, set[str], int],
+) -> None:
+    _, text, seen, code = set_c
+    assert code == 0, text[-3000:]
+    m = re.search(r'simulated run on ROS domain (\d+)', text)
+    assert m, text[:500]
+    assert int(m.group(1)) != 0
+    ours = {t for t in seen if 'stage/goal' in t or t in ('/capture_request', '/clock')}
+    assert not ours, f'the simulated run published on domain 0: {sorted(ours)}'
+
+
+def test_set_c_two_objects_and_a_post(set_c: tuple[Path, str, set[str], int]) -> None:
+    out, text, _, code = set_c
+    assert code == 0, text[-3000:]
+    assert 'two objects at once' in text
+    doc: dict[str, Any] = json.loads((out / 'results.json').read_text())
     assert doc['mode'] == 'surveil'
     assert doc['set'] == 'C'
     assert len(doc['obstacles']) == 1
@@ -34,8 +84,11 @@ def test_set_c_two_objects_and_a_post(tmp_path: Path) -> None:
     assert {d['object'] for d in demands} == {o['id'] for o in doc['objects']}
     assert len(demands) >= 10
     assert all(d['occluded'] == [] for d in demands)  # never a blocked camera assigned
+    # (When the two pass each other, the far one is hidden from every camera for a demand:
+    # no assignment could serve it; docs/multi-object.md.)
     ok = [d for d in demands if d['status'] == 'ok']
-    assert len(ok) >= 0.8 * len(demands), [(d['index'], d['status'], d['reason']) for d in demands]
+    why = [(d['index'], d['status'], d['reason']) for d in demands]
+    assert len(ok) >= 0.75 * len(demands), why
     assert max(d['position_error'] for d in ok) < 1e-3
     s = doc['summary']
     assert s['max_objects_at_once'] == 2
@@ -44,4 +97,3 @@ def test_set_c_two_objects_and_a_post(tmp_path: Path) -> None:
     report = (out / 'report.md').read_text()
     assert report.startswith('# activesurv Set C')
     assert (out / 'scene_top.png').stat().st_size > 10_000
-    assert 'Set C' in r.stdout or 'two objects' in r.stdout

@@ -1,4 +1,4 @@
-"""Continuous surveillance, the short version of the soak (about 2 minutes): two objects at
+"""Continuous surveillance, the short version of the soak (about a minute): two objects at
 once at rtf 1 (lanes, every marker tracked, staggered demands), a split bag, a clean stop on
 SIGINT that answers every open demand, and the results contract (``objects``, ``demands`` with
 ``object`` and ``occluded``, ``summary`` with the tracking figures)."""
@@ -39,9 +39,9 @@ def test_surveil_runs_two_objects_at_once_and_stops_cleanly_on_sigint(
             '--demand-interval',
             '2',
             '--max-bag-duration',
-            '15',
+            '10',
             '--seed',
-            '3',
+            '11',  # a parabola (1-26 s) and an arc (14-39 s)
             '--objects-at-once',
             '2',
         ],
@@ -55,9 +55,9 @@ def test_surveil_runs_two_objects_at_once_and_stops_cleanly_on_sigint(
     try:
         for line in proc.stdout:
             lines.append(line)
-            # Stop once the second object is being surveyed (simulated time >= 40 s).
+            # Stop once the first has left and the second is being surveyed (time >= 30 s).
             m = re.search(r'simulated time (\d+) s', line)
-            if (m and int(m.group(1)) >= 40) or time.monotonic() > deadline:
+            if (m and int(m.group(1)) >= 30) or time.monotonic() > deadline:
                 break
         os.kill(proc.pid, signal.SIGINT)
         rest, _ = proc.communicate(timeout=120)

@@ -154,8 +154,9 @@ def test_bridge_moves_and_recovers_from_every_fault(
         _wait(w, lambda s: s.state is LinkState.READY)
         assert w.snapshot().counters['homings'] >= 1  # homed on first connect
 
-        w.submit_goal(joint, 0.01, 0.02)
-        _wait(w, _at(joint, 0.01))
+        # (targets near home, the lower limit -0.15 m: short moves keep the test quick)
+        w.submit_goal(joint, -0.13, 0.02)
+        _wait(w, _at(joint, -0.13))
 
         # A goal outside the soft limits is refused before anything is written.
         sent_before = len(emu.received)
@@ -169,8 +170,8 @@ def test_bridge_moves_and_recovers_from_every_fault(
         # Garbage on the line and dropped replies: skipped, or reconnected.
         emu.garbage(3)
         emu.drop_replies(1)
-        w.submit_goal(joint, -0.02)
-        s = _wait(w, _at(joint, -0.02))
+        w.submit_goal(joint, -0.12)
+        s = _wait(w, _at(joint, -0.12))
         assert s.counters['garbage_lines'] >= 1 or s.counters['comm_errors'] >= 1
 
         # Unplugged: reported, then reconnected at the same path when it comes back.
@@ -179,18 +180,18 @@ def test_bridge_moves_and_recovers_from_every_fault(
         assert 'communication lost' in s.last_error or 'connect failed' in s.last_error
         time.sleep(0.5)
         emu.replug()
-        _wait(w, _at(joint, -0.02))
+        _wait(w, _at(joint, -0.12))
 
         # Controller reset: the reference is lost; the bridge re-homes and resends the goal.
         homings = w.snapshot().counters['homings']
         emu.reset()
-        _wait(w, lambda s: s.counters['homings'] > homings and _at(joint, -0.02)(s))
+        _wait(w, lambda s: s.counters['homings'] > homings and _at(joint, -0.12)(s))
 
         # A hung controller (stall of the line): silence, reconnect, carry on.
         emu.freeze(1.0)
         time.sleep(1.5)
-        w.submit_goal(joint, 0.03)
-        _wait(w, _at(joint, 0.03))
+        w.submit_goal(joint, -0.11)
+        _wait(w, _at(joint, -0.11))
 
         # Nothing outside the soft limits ever reached the wire.
         lo, hi = axes[0].limits.min_position, axes[0].limits.max_position
@@ -261,9 +262,9 @@ def test_grbl_moves_the_axes_of_one_goal_in_one_command(grbl_emu: GrblEmulator) 
     try:
         _wait(w, lambda s: s.state is LinkState.READY)
         x, y = GRBL_AXES[0].joint, GRBL_AXES[1].joint
-        refused = w.submit_goals([(x, 0.02, 0.01), (y, 0.01, 0.005)])
+        refused = w.submit_goals([(x, -0.13, 0.02), (y, -0.95, 0.05)])  # 20 mm, 2.9 deg
         assert refused == []
-        _wait(w, lambda s: abs(s.positions[x] - 0.02) < 1e-4 and abs(s.positions[y] - 0.01) < 1e-4)
+        _wait(w, lambda s: abs(s.positions[x] + 0.13) < 1e-4 and abs(s.positions[y] + 0.95) < 1e-4)
         jogs = [r for r in grbl_emu.received if r.startswith(b'$J=')]
         assert any(b'X' in j and b'A' in j for j in jogs), jogs  # one command, both axes
     finally:

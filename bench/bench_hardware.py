@@ -38,21 +38,23 @@ from activesurv_sim.rig import save_rig
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SURVEIL_S = float(os.environ.get('ACTIVESURV_BENCH_SURVEIL_S', '600'))
+# The lab cameras' frame rate (Hz); and 1 to measure the session alone (diagnosis).
+LAB_RATE = float(os.environ.get('ACTIVESURV_BENCH_LAB_RATE', '30'))
+SURVEIL_ONLY = os.environ.get('ACTIVESURV_BENCH_SURVEIL_ONLY', '') == '1'
 
 
 def _lab(rig: Path, out: Path, *extra: str) -> subprocess.Popen[str]:
-    lab = subprocess.Popen(
-        [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(out), *extra],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    log = out.with_name(f'{out.name}.log')  # (a pipe nobody reads would fill and stall it)
+    with log.open('w') as f:
+        lab = subprocess.Popen(
+            [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(out), '--frame-rate',
+             str(LAB_RATE), *extra],
+            stdout=f, stderr=subprocess.STDOUT, text=True,
+        )  # fmt: skip
     deadline = time.monotonic() + 60.0
     while not (out / 'hardware.yaml').exists():
         if lab.poll() is not None or time.monotonic() > deadline:
-            raise RuntimeError(
-                f'the lab did not come up: {lab.stdout.read() if lab.stdout else ""}'
-            )
+            raise RuntimeError(f'the lab did not come up: {log.read_text()[-2000:]}')
         time.sleep(0.2)
     time.sleep(3.0)
     return lab
@@ -101,8 +103,9 @@ def run() -> dict[str, Any]:
         lab = _lab(rig, d / 'lab')
         hw = d / 'lab' / 'hardware.yaml'
         try:
-            corrected = _figures(_experiment(hw, d / 'A_fast'))
-            raw = _figures(_experiment(hw, d / 'A_fast_raw', '--no-motion-correction'))
+            if not SURVEIL_ONLY:
+                corrected = _figures(_experiment(hw, d / 'A_fast'))
+                raw = _figures(_experiment(hw, d / 'A_fast_raw', '--no-motion-correction'))
             started = time.monotonic()
             r = subprocess.run(
                 [ACTIVESURV, 'surveil', '--hardware', str(hw), '--calibration', 'nominal',
@@ -115,6 +118,26 @@ def run() -> dict[str, Any]:
             _stop(lab)
         if r.returncode != 0:
             raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
+        lat = [x['latency'] for x in session['demands'] if x.get('latency') is not None]
+        out.update(
+            camera_rate_hz=LAB_RATE,
+            surveil_seconds=SURVEIL_S,
+            surveil_wall_seconds=round(wall, 1),
+            surveil_demands=session['summary']['demands'],
+            surveil_ok_fraction=round(
+                session['summary']['ok'] / max(session['summary']['demands'], 1), 4
+            ),
+            surveil_latency_median_ms=round(1e3 * statistics.median(lat), 1) if lat else None,
+            surveil_latency_p90_ms=round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None,
+            # what the shortfall is made of: each demand not ok, with its reason
+            surveil_not_ok=[
+                f'{x["index"]} {x["status"]}: {str(x.get("reason") or "")[:160]}'
+                for x in session['demands']
+                if x['status'] != 'ok'
+            ],
+        )
+        if SURVEIL_ONLY:
+            return out
         # The table on an external controller: an emulator that is not the lab's, on its port.
         emu, _ = table_controller(d / 'ttyEXTERNAL')
         try:
@@ -125,7 +148,6 @@ def run() -> dict[str, Any]:
                 _stop(lab)
         finally:
             emu.close()
-    lat = [x['latency'] for x in session['demands'] if x.get('latency') is not None]
     out.update(
         setA_fast_ok=f'{corrected["ok"]}/10',
         setA_fast_k=f'{corrected["k"]}/10',
@@ -133,23 +155,8 @@ def run() -> dict[str, Any]:
         median_error_mm_uncorrected=raw['error_mm'],
         frame_offset_abs_median_ms=corrected['offset_median_ms'],
         frame_offset_abs_max_ms=corrected['offset_max_ms'],
-        camera_rate_hz=30.0,
         external_table_ok=f'{external["ok"]}/10',
         external_table_error_mm=external['error_mm'],
-        surveil_seconds=SURVEIL_S,
-        surveil_wall_seconds=round(wall, 1),
-        surveil_demands=session['summary']['demands'],
-        surveil_ok_fraction=round(
-            session['summary']['ok'] / max(session['summary']['demands'], 1), 4
-        ),
-        surveil_latency_median_ms=round(1e3 * statistics.median(lat), 1) if lat else None,
-        surveil_latency_p90_ms=round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None,
-        # what the shortfall is made of: each demand not ok, with its reason
-        surveil_not_ok=[
-            f'{x["index"]} {x["status"]}: {str(x.get("reason") or "")[:160]}'
-            for x in session['demands']
-            if x['status'] != 'ok'
-        ],
         setA_fast_not_ok=corrected['not_ok'],
     )
     return out

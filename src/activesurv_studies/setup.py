@@ -15,7 +15,7 @@ setup(
     zip_safe=False,
     maintainer='activesurv developers',
     maintainer_email='dev@activesurv.invalid',
-    description='Offline studies: the sensor-model experiment and the prediction suite.',
+    description='Offline studies: sensor-model experiment, prediction suite, tracking metrics.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

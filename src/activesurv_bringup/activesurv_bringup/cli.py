@@ -470,7 +470,7 @@ def experiment(
     doc: dict[str, Any]
     if mode == 'lockstep':
         from activesurv_bringup.experiments.lockstep import run_lockstep
-        from activesurv_bringup.experiments.tracking import track_metrics
+        from activesurv_studies.tracking import track_metrics
 
         def progress(j: int, m: int, t: float) -> None:
             say(f'demand {j} of {m}, simulated time {t:.1f} s')

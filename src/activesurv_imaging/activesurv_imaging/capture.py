@@ -28,8 +28,8 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, replace
-from typing import Generic, TypeVar
+from dataclasses import dataclass, fields, replace
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -106,6 +106,17 @@ class ImagerConfig:
             raise ImagingError(f'free_reach must be >= 0.5 periods, got {self.free_reach}')
         if not (math.isfinite(self.velocity_std) and self.velocity_std >= 0.0):
             raise ImagingError(f'velocity_std must be >= 0 m/s, got {self.velocity_std}')
+
+    def to_parameters(self) -> dict[str, Any]:
+        """The ``imager`` node's parameters saying the same (``obstacles`` excepted: the node
+        reads them from ``obstacles_file``)."""
+        out: dict[str, Any] = {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in ('obstacles', 'exact_state')
+        }
+        out['exact_states'] = self.exact_state
+        return out
 
     @property
     def tolerance(self) -> float:

@@ -9,11 +9,10 @@ decisions are :class:`activesurv_imaging.capture.CaptureCore`'s; this node only 
 
 Subscribes: capture_request, <camera_id>/image_raw, <camera_id>/camera_info,
     <camera_id>/stage/joint_states (unless the mount is static).
-Publishes: marker_observations, <camera_id>/marker_annotations (ImageMarker: the fitted
-    ellipse, its centre and the chosen normal, or the failure), <camera_id>/imager/heartbeat
-    (std_msgs/Header at 10 Hz of the node clock: the dispatcher stops assigning this camera
-    when the beat stops), /diagnostics.
-Parameters: see ``config/imager.yaml``.
+Publishes: marker_observations, <camera_id>/marker_annotations (ImageMarker: the ellipse, its
+    centre and the chosen normal, or the failure), <camera_id>/imager/heartbeat (Header, 10 Hz:
+    the dispatcher stops assigning a camera whose beat stops), /diagnostics.
+Parameters: see ``config/imager.yaml`` (typed: :class:`activesurv_imaging.capture.ImagerConfig`).
 """
 
 from __future__ import annotations
@@ -61,9 +60,7 @@ PARAMS = (
     Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
-    Param(
-        'free_reach', 2.25, 'free-running: frame periods the taken frame may be off', minimum=0.5
-    ),
+    Param('free_reach', 2.25, 'free-running: periods the taken frame may be off', minimum=0.5),
     Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),
     Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
     Param('several_objects', False, 'measure the marker nearest the predicted one of several'),
@@ -98,9 +95,8 @@ class ImagerNode(Node):
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
         )
-        self._beat_pub = self.create_publisher(
-            Header, topics.heartbeat(self.camera_id), qos.SENSOR
-        )
+        beat = topics.heartbeat(self.camera_id)
+        self._beat_pub = self.create_publisher(Header, beat, qos.SENSOR)
         self._ann_pub = self.create_publisher(
             ImageMarker, topics.marker_annotations(self.camera_id), qos.EVENTS
         )

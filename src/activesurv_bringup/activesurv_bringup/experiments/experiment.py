@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.experiments.faults import Fault, imager_injection
 from activesurv_bringup.files import DDS_PROFILES as DDS_PROFILES  # re-exported
 from activesurv_bringup.files import cache_dir, config_path
 from activesurv_bringup.files import config_file as config_file  # re-exported
@@ -34,6 +35,8 @@ from activesurv_dispatch.initial_pose import initial_poses
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup, setup_to_dict
 from activesurv_dispatch.session import DispatcherConfig
+from activesurv_fusion.config import FusionConfig
+from activesurv_imaging.capture import ImagerConfig
 from activesurv_prediction.session import PredictorConfig
 from activesurv_sim.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
 from activesurv_stages.errors import ConfigError as StageConfigError
@@ -134,6 +137,22 @@ class Experiment:
             float(dc['capture_lead']),
             float(dc['settle_time']),
             camera_timeout,
+        )
+
+    def fusion_config(self) -> FusionConfig:
+        """What the fusion node is told in this experiment."""
+        fc = self.config['fusion']
+        return FusionConfig(float(fc['collect_timeout']), float(fc['z_sigma']))
+
+    def imager_config(self, camera_id: str, fault: Fault | None = None) -> ImagerConfig:
+        """What camera ``camera_id``'s imager is told in this simulated experiment (with its
+        injected fault, if any): its stages latch their state at each instant."""
+        return ImagerConfig(
+            camera_id,
+            self.setup.marker_radius,
+            exact_state=True,
+            obstacles=self.setup.obstacles,
+            **imager_injection(fault),  # type: ignore[arg-type]
         )
 
     def summary(self) -> dict[str, Any]:

@@ -23,7 +23,7 @@ import yaml
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
-from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill, imager_injection
+from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_launch.launcher import Launcher, NodeSpec, container
@@ -155,16 +155,13 @@ def graph_specs(
         }
         imager_params: dict[str, Any] = {
             **sim,
-            'camera_id': cid,
-            'marker_radius': exp.setup.marker_radius,
+            **exp.imager_config(cid, fault).to_parameters(),
             **mount_parameters(s),
             'reliable_images': True,
-            'exact_states': True,  # the simulated stages latch their state at each instant
             **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
         }
         if fault is not None and fault.kind is FaultKind.FROZEN:
             cam_params['inject_frozen'] = True
-        imager_params.update(imager_injection(fault))
         specs.append(
             NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params)
         )
@@ -237,7 +234,6 @@ def core_specs(
 ) -> list[NodeSpec]:
     """Predictor, dispatcher, frames and fusion: the same in simulated and hardware runs but
     for their ``clock`` (``use_sim_time``), the believed set-up and the demand instants."""
-    cfg = exp.config
     dispatcher = exp.dispatcher_config()
     return [
         NodeSpec(
@@ -268,8 +264,7 @@ def core_specs(
             'activesurv_fusion.fusion_node',
             parameters={
                 **clock,
-                'collect_timeout': float(cfg['fusion']['collect_timeout']),
-                'z_sigma': float(cfg['fusion']['z_sigma']),
+                **exp.fusion_config().to_parameters(),
                 'journal': str(logs / 'fusion.journal'),
             },
         ),
@@ -430,7 +425,7 @@ class Until:
 def experiment_until(exp: Experiment, rtf: float) -> Until:
     """An experiment ends when every demand has an answer (or its time is long past)."""
     m = len(exp.demand_times)
-    end_sim = exp.demand_times[-1] + float(exp.config['fusion']['collect_timeout']) + 2.0
+    end_sim = exp.demand_times[-1] + exp.fusion_config().collect_timeout + 2.0
     shown = [-1]
 
     def report(mon: Any) -> str | None:

@@ -41,6 +41,7 @@ from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
 from activesurv_common.calibration import pose_to_list
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_hardware.hardware_file import CameraEntry, Hardware
+from activesurv_imaging.capture import ImagerConfig
 from activesurv_launch.launcher import NodeSpec
 
 TABLE_ID = 'xy_table'
@@ -65,16 +66,20 @@ def hardware_files(exp: Experiment, hw: Hardware, out: Path) -> dict[str, str]:
     return files
 
 
-def imaging(cam: CameraEntry) -> dict[str, Any]:
-    """What an imager is told about its camera's timing."""
-    return {
-        'use_sim_time': False,
-        'trigger': cam.trigger,
-        'frame_rate': cam.frame_rate,
-        'exposure_delay': cam.exposure_delay,
+def imager_config(
+    cam: CameraEntry, marker_radius: float, motion_correction: bool = True
+) -> ImagerConfig:
+    """What an imager on the real rig is told: its camera's trigger and timing."""
+    return ImagerConfig(
+        cam.camera_id,
+        marker_radius,
+        trigger=cam.trigger,
+        frame_rate=cam.frame_rate,
+        exposure_delay=cam.exposure_delay,
         # Free-running frames arrive up to half a period plus the delay after the instant.
-        'frame_timeout': 1.0 + cam.exposure_delay + (1.0 / cam.frame_rate),
-    }
+        frame_timeout=1.0 + cam.exposure_delay + (1.0 / cam.frame_rate),
+        motion_correction=motion_correction,
+    )
 
 
 def hardware_specs(
@@ -140,10 +145,10 @@ def hardware_specs(
                 f'{cid}_imager',
                 'activesurv_imaging.imager_node',
                 parameters={
-                    **imaging(cam),
-                    'camera_id': cid,
-                    'marker_radius': exp.setup.marker_radius,
-                    'motion_correction': motion_correction,
+                    'use_sim_time': False,
+                    **imager_config(
+                        cam, exp.setup.marker_radius, motion_correction
+                    ).to_parameters(),
                     **mount_parameters(s),
                 },
                 remappings=remap,

@@ -31,17 +31,17 @@ from activesurv_bringup.experiments.evaluation import (
     observed_visibility,
 )
 from activesurv_bringup.experiments.experiment import Experiment
-from activesurv_bringup.experiments.faults import Fault, FaultKind, imager_injection
-from activesurv_bringup.experiments.tracking import Snapshot
+from activesurv_bringup.experiments.faults import Fault, FaultKind
 from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher
 from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
+from activesurv_fusion.config import FusionConfig
 from activesurv_fusion.errors import InvalidReadingError
 from activesurv_fusion.pose_fusion import PoseReading
-from activesurv_imaging.capture import CaptureCore, ImagerConfig
+from activesurv_imaging.capture import CaptureCore
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.session import PredictionSession
@@ -49,6 +49,7 @@ from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.sim_camera import ObjectGeometry, object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
+from activesurv_studies.tracking import Snapshot
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int, float], None]
@@ -115,12 +116,7 @@ def run_lockstep(
             Renderer(exp.true_camera(s.camera_id)[0]),
             exp.true_camera(s.camera_id)[1],
             CaptureCore(
-                ImagerConfig(
-                    s.camera_id,
-                    exp.setup.marker_radius,
-                    obstacles=exp.setup.obstacles,
-                    **imager_injection(by_cam.get(s.camera_id)),  # type: ignore[arg-type]
-                ),
+                exp.imager_config(s.camera_id, by_cam.get(s.camera_id)),
                 s.mount,
                 exp.model,
                 _identity,
@@ -130,7 +126,7 @@ def run_lockstep(
         for s in exp.setup.sensors
         if s.camera_id not in dead
     }
-    z_sigma = float(cfg['fusion']['z_sigma'])
+    fusion = exp.fusion_config()
     truth_obstacles = exp.rig.rig.obstacles if exp.rig is not None else ()
     fixtures = obstacle_plates(truth_obstacles)  # what the cameras really see
 
@@ -186,7 +182,7 @@ def run_lockstep(
             plan_log.extend((c.demand.index, c.cameras) for c in out.captures)
         for done in out.serviced:
             records[done.demand.index] = _capture(
-                exp, done, cameras, by_cam, rng, noise, geometry, z_sigma, truth_obstacles
+                exp, done, cameras, by_cam, rng, noise, geometry, fusion, truth_obstacles
             )
             if progress:
                 progress(len(records), len(exp.demand_times), done.demand.time)
@@ -221,7 +217,7 @@ def _capture(
     rng: np.random.Generator,
     noise: SensorNoise,
     geometry: ObjectGeometry,
-    z_sigma: float,
+    fusion: FusionConfig,
     obstacles: Sequence[Obstacle] = (),
 ) -> DemandRecord:
     started = time.perf_counter()
@@ -278,7 +274,7 @@ def _capture(
         except InvalidReadingError as exc:
             answers[cid] = Answer(cid, Outcome.FAILED, None, str(exc))
     batch = DemandBatch(capture.demand.index, tj, tuple(capture.cameras), answers)
-    result = resolve(batch, z=z_sigma)
+    result = resolve(batch, z=fusion.z_sigma, max_faulty=fusion.faulty_limit)
     rec = DemandRecord(capture.demand.index, tj, truth.side.copy(), truth.side_normal.copy())
     rec.assigned = list(capture.cameras)
     rec.missing = list(result.cameras_missing)

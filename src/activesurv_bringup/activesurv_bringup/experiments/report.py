@@ -39,11 +39,11 @@ from activesurv_bringup.experiments.records import (
     run_obstacles,
 )
 from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
-from activesurv_bringup.experiments.tracking import TrackRecorder
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_liveview.scene import plot_scene
 from activesurv_recording.bagio import read_bag, run_info
+from activesurv_studies.tracking import TrackRecorder
 
 TOPICS = {
     '/object_state',

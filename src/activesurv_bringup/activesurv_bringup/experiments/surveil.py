@@ -41,7 +41,6 @@ from activesurv_bringup.experiments.records import (
     msg_vector,
     run_obstacles,
 )
-from activesurv_bringup.experiments.tracking import TrackRecorder, track_metrics
 from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.occlusion import obstacles_to_list, plate_box
 from activesurv_common.sensor_model import SensorModel
@@ -50,6 +49,7 @@ from activesurv_hardware.hardware_file import Hardware
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.bagio import read_bag, run_info
 from activesurv_sim.stream import MAX_AT_ONCE, PATH_KINDS, ObjectStream, scripted_passes
+from activesurv_studies.tracking import TrackRecorder, track_metrics
 
 # Where the Set A cameras can serve (their placement covers the paper's tracking region).
 DEMAND_REGION = (0.10, 0.40, 0.0, 0.2)

@@ -109,15 +109,15 @@ def run() -> dict[str, Any]:
             started = time.monotonic()
             r = subprocess.run(
                 [ACTIVESURV, 'surveil', '--hardware', str(hw), '--calibration', 'nominal',
-                 '--out', str(d / 'session'), '--duration', str(SURVEIL_S)],
+                 '--out', str(d / 'session'), '--duration', str(SURVEIL_S), '--home'],
                 capture_output=True, text=True, timeout=SURVEIL_S * 2 + 300,
             )  # fmt: skip
-            session = json.loads((d / 'session' / 'results.json').read_text())
             wall = time.monotonic() - started
         finally:
             _stop(lab)
         if r.returncode != 0:
             raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
+        session = json.loads((d / 'session' / 'results.json').read_text())
         lat = [x['latency'] for x in session['demands'] if x.get('latency') is not None]
         out.update(
             camera_rate_hz=LAB_RATE,

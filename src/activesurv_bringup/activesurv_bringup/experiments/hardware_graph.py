@@ -234,28 +234,39 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
             msg.max_velocities = [0.0] * len(q)
             pub.publish(msg)
 
-        def placed() -> bool:
+        def astray() -> list[str]:
+            """The cameras not at their initial pose, each with where it is."""
+            out = []
             for cid, names, q in goals:
                 m = states.get(cid)
                 if m is None:
-                    return False
+                    out.append(f'{cid} (no joint state)')
+                    continue
                 at = dict(zip(m.name, m.position, strict=False))
-                if any(abs(at.get(n, math.inf) - v) > 1e-3 for n, v in zip(names, q, strict=True)):
-                    return False
-            return True
+                now = [at.get(n, math.inf) for n in names]
+                if any(abs(a - v) > 1e-3 for a, v in zip(now, q, strict=True)):
+                    out.append(f'{cid} (at {[round(a, 4) for a in now]}, not {list(q)})')
+            return out
 
         deadline = time.monotonic() + timeout
-        while not placed() and time.monotonic() < deadline:
+        while astray() and time.monotonic() < deadline:
             monitor.spin(0.1)
         left = origin - time.time()
+        missing = astray()
         progress(
-            ('cameras at their initial poses' if placed() else 'cameras NOT all placed in time')
+            (f'cameras NOT all placed in time: {", ".join(missing)}' if missing else
+             'cameras at their initial poses')
             + f'; run time 0 in {left:.1f} s'
-        )
+        )  # fmt: skip
         if left < 2.0:
+            hint = (
+                ' (a controller not homed since power-up refuses every goal: add --home)'
+                if missing
+                else ''
+            )
             raise NodeDiedError(
                 f'the rig came up too late for run time 0 ({-left:.1f} s past it): the stages or '
-                'the table did not answer in time'
+                f'the table did not answer in time{hint}'
             )
 
     return place

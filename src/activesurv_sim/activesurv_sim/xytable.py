@@ -203,6 +203,66 @@ class ObjectModel:
 
 
 @dataclass(frozen=True)
+class TableConfig:
+    """What the xy table is told (the typed half of a run description): the object's path, its
+    speed and start, and the markers on the carriage. The graph turns it into the simulated
+    ``xy_table``'s (or a real table's ``table_runner``'s) parameters, lockstep into an
+    :class:`XYTable`.
+
+    Attributes:
+        path_type: ``line``, ``parabola`` or ``csv``.
+        path_points: the line's or parabola's points (m), as :func:`named_path` takes them.
+        csv_file: the ``t,x,y`` file of a ``csv`` path.
+        speed, acceleration: the path's speed (m/s) and acceleration (m/s^2).
+        start_time: when the object starts (s).
+        enters_at_start: out of every camera's view before ``start_time``.
+        model: the markers on the carriage.
+    """
+
+    path_type: str
+    path_points: tuple[float, ...] = ()
+    csv_file: str = ''
+    speed: float = 0.02
+    acceleration: float = 0.02
+    start_time: float = 0.5
+    enters_at_start: bool = False
+    model: ObjectModel = ObjectModel()
+
+    def path(self) -> TimedPath:
+        """The object's path.
+
+        Raises:
+            ConfigError: for an unknown type, bad points or an unreadable CSV.
+        """
+        return named_path(
+            self.path_type, self.path_points, self.speed, self.acceleration, self.csv_file
+        )
+
+    def table(self, position_error: Callable[[float, float], Array] | None = None) -> XYTable:
+        """The object on the table (with the rig's table errors, if given)."""
+        return XYTable(
+            self.path(), self.start_time, self.model, position_error, self.enters_at_start
+        )
+
+    def to_parameters(self) -> dict[str, object]:
+        """The ``xy_table`` node's parameters saying the same."""
+        out: dict[str, object] = {
+            'path_type': self.path_type,
+            'speed': self.speed,
+            'acceleration': self.acceleration,
+            'start_time': self.start_time,
+            'enters_at_start': self.enters_at_start,
+            'top_height': self.model.top_height,
+            'side_offset': list(self.model.side_offset),
+            'side_normal': list(self.model.side_normal),
+        }
+        out['csv_file'] = self.csv_file
+        if self.path_type != 'csv':  # (an empty array parameter has no type: left out)
+            out['path_points'] = list(self.path_points)
+        return out
+
+
+@dataclass(frozen=True)
 class ObjectState:
     top: Array
     side: Array

@@ -119,3 +119,22 @@ def test_a_scripted_stream_has_exactly_its_objects_in_their_lanes() -> None:
     twice = [script[1], {**script[1], 'enter': 5.0}]
     with pytest.raises(ConfigError, match='share lane'):
         ObjectStream(0, script=twice)
+
+
+def test_a_table_config_says_the_same_as_its_node_parameters() -> None:
+    from activesurv_sim.stream import table_from_parameters
+    from activesurv_sim.xytable import ObjectModel, TableConfig, XYTable
+
+    c = TableConfig(
+        'parabola', (0.13, 0.05, 0.25, 0.09, 0.37, 0.05), start_time=0.5, enters_at_start=True,
+        model=ObjectModel(0.07, (0.0, -0.02, -0.03), (0.0, -1.0, 0.0)),
+    )  # fmt: skip
+    direct = c.table()
+    via = table_from_parameters(c.to_parameters())
+    assert isinstance(via, XYTable)
+    for t in (0.0, 0.6, 3.0, 9.0):
+        a, b = direct.state(t), via.state(t)
+        assert np.allclose(a.side, b.side)
+        assert a.present == b.present
+    with pytest.raises(ConfigError):
+        TableConfig('spiral').path()

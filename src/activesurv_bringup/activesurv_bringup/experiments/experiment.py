@@ -38,7 +38,14 @@ from activesurv_dispatch.session import DispatcherConfig
 from activesurv_fusion.config import FusionConfig
 from activesurv_imaging.capture import ImagerConfig
 from activesurv_prediction.session import PredictorConfig
-from activesurv_sim.xytable import ObjectModel, TimedPath, XYTable, from_csv, named_path
+from activesurv_sim.xytable import (
+    ObjectModel,
+    TableConfig,
+    TimedPath,
+    XYTable,
+    from_csv,
+    named_path,
+)
 from activesurv_stages.errors import ConfigError as StageConfigError
 
 SETS = ('A', 'B')
@@ -72,13 +79,28 @@ class Experiment:
     def start_time(self) -> float:
         return float(self.config['object']['start_time'])
 
+    def table_config(self) -> TableConfig:
+        """What the xy table is told in this experiment: the actual path, the object."""
+        obj, spec = self.config['object'], self.actual_spec
+        csv = spec['type'] == 'csv'
+        return TableConfig(
+            str(spec['type']),
+            () if csv else tuple(float(v) for v in spec['points']),
+            str(spec['csv']) if csv else '',
+            float(obj['speed']),
+            float(obj['acceleration']),
+            self.start_time,
+            bool(obj.get('enters_at_start', False)),
+            self.object_model,
+        )
+
     def table(self, expected: bool = False) -> XYTable:
         """The object on the xy table (the actual path with the rig's table errors)."""
         if expected:
             return XYTable(self.expected, self.start_time, self.object_model)
         error = self.rig.rig.table_offset if self.rig is not None else None
-        enters = bool(self.config['object'].get('enters_at_start', False))
-        return XYTable(self.actual, self.start_time, self.object_model, error, enters)
+        c = self.table_config()
+        return XYTable(self.actual, c.start_time, c.model, error, c.enters_at_start)
 
     def true_camera(self, camera_id: str) -> tuple[CameraModel, CameraMount]:
         """A dynamic camera as it really is: the rig's optics and mount with stage errors."""

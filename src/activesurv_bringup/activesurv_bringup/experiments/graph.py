@@ -91,7 +91,6 @@ def graph_specs(
     """
     cfg = exp.config
     sim = {'use_sim_time': True}
-    obj = cfg['object']
     files = rig_files(exp, bag.parent)
     over = pose_to_list(exp.overhead(truth=False)[1])  # as the system believes it
     truth = {'rig_file': files['rig_file']} if files else {}
@@ -175,16 +174,8 @@ def graph_specs(
             replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
             for s in specs
         ]
-    spec = exp.actual_spec
     table: dict[str, Any] = {
-        'path_type': str(spec['type']),
-        'speed': float(obj['speed']),
-        'acceleration': float(obj['acceleration']),
-        'start_time': float(obj['start_time']),
-        'enters_at_start': bool(obj.get('enters_at_start', False)),
-        'top_height': float(obj['top_height']),
-        'side_offset': [float(v) for v in obj['side_offset']],
-        'side_normal': [float(v) for v in obj['side_normal']],
+        **exp.table_config().to_parameters(),
         # 20 Hz of /clock and object states: the overhead camera runs at 10 Hz, every demand
         # instant gets a tick and a state of its own, and each tick wakes every process.
         'publish_rate': 20.0,
@@ -194,10 +185,6 @@ def graph_specs(
         # The recorder and every simulated camera must hear the object from the start.
         'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
     }
-    if spec['type'] == 'csv':
-        table['csv_file'] = str(spec['csv'])
-    else:
-        table['path_points'] = [float(v) for v in spec['points']]
     host = 'core' if split_hosts else ''
     specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
     return specs

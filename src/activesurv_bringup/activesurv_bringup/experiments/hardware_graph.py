@@ -163,22 +163,12 @@ def hardware_specs(
 
 def table_runner_spec(exp: Experiment, origin: float, run_path: bool) -> NodeSpec:
     """The table runner: the path on the controller (``run_path``), its reports as truth."""
-    obj, spec = exp.config['object'], exp.actual_spec
     params: dict[str, Any] = {
+        **exp.table_config().to_parameters(),
         'run_path': run_path,
-        'path_type': str(spec['type']),
-        'speed': float(obj['speed']),
-        'acceleration': float(obj['acceleration']),
-        'start_time': float(obj['start_time']),
         'time_origin': float(origin),
-        'top_height': float(obj['top_height']),
-        'side_offset': [float(v) for v in obj['side_offset']],
-        'side_normal': [float(v) for v in obj['side_normal']],
     }
-    if spec['type'] == 'csv':
-        params['csv_file'] = str(spec['csv'])
-    else:
-        params['path_points'] = [float(v) for v in spec['points']]
+    params.pop('enters_at_start')  # a real table's object is on it from the start
     return NodeSpec('table_runner', 'activesurv_hardware.table_runner_node', parameters=params)
 
 

@@ -13,7 +13,8 @@ calibration (so errors are the method's, not a calibration's):
   table=PORT``);
 * ``surveil_ok_fraction``, ``surveil_latency_median_ms``, ``surveil_latency_p90_ms``,
   ``surveil_demands``: ``surveil --hardware`` for ``ACTIVESURV_BENCH_SURVEIL_S`` seconds (600 by
-  default: the issue's 10 minutes); ``surveil_not_ok`` and ``setA_fast_not_ok`` list the demands
+  default: the issue's 10 minutes), ``surveil_estimated_fraction`` the demands with an estimate
+  (``ok``, or ``partial``: fused from fewer cameras than assigned); ``surveil_not_ok`` and ``setA_fast_not_ok`` list the demands
   short of ok (or of k cameras) with their reasons.
 """
 
@@ -126,6 +127,12 @@ def run() -> dict[str, Any]:
             surveil_demands=session['summary']['demands'],
             surveil_ok_fraction=round(
                 session['summary']['ok'] / max(session['summary']['demands'], 1), 4
+            ),
+            # an estimate, from every assigned camera (ok) or from fewer (partial)
+            surveil_estimated_fraction=round(
+                sum(x['estimated_position'] is not None for x in session['demands'])
+                / max(session['summary']['demands'], 1),
+                4,
             ),
             surveil_latency_median_ms=round(1e3 * statistics.median(lat), 1) if lat else None,
             surveil_latency_p90_ms=round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None,

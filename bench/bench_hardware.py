@@ -14,8 +14,8 @@ calibration (so errors are the method's, not a calibration's):
 * ``surveil_ok_fraction``, ``surveil_latency_median_ms``, ``surveil_latency_p90_ms``,
   ``surveil_demands``: ``surveil --hardware`` for ``ACTIVESURV_BENCH_SURVEIL_S`` seconds (600 by
   default: the issue's 10 minutes), ``surveil_estimated_fraction`` the demands with an estimate
-  (``ok``, or ``partial``: fused from fewer cameras than assigned); ``surveil_not_ok`` and ``setA_fast_not_ok`` list the demands
-  short of ok (or of k cameras) with their reasons.
+  (``ok``, or ``partial``: fused from fewer cameras than assigned); ``surveil_not_ok`` and
+  ``setA_fast_not_ok`` list the demands short of ok (or of k cameras) with their reasons.
 """
 
 from __future__ import annotations

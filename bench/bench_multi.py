@@ -15,6 +15,10 @@ simulated seconds (600 by default: the issue's 10 minutes) at rtf 1:
   occlusions; ``activesurv_bringup.experiments.clairvoyant``), and
   ``two_greedy_visibility_vs_clairvoyant`` for an occlusion-blind greedy one;
 * ``two_latency_median_ms``: demand instant to estimate;
+* ``scaling_<N>obj_<n>cam_cameras_per_demand`` / ``_none_fraction`` / ``_demands``: where it
+  breaks, N = 1..4 objects at once with n = 4 or 8 cameras, in a dispatch lockstep (perfect
+  predictions, no rendering; ``activesurv_bringup.experiments.scaling``): assigned cameras that
+  see the marker at the instant per demand, and the demands none sees;
 * ``tracker_ms_per_frame_1`` / ``_3`` / ``_10``: the MultiTracker's time per overhead frame
   (gating, assignment, the IMM updates) with 1, 3 and 10 objects, and
   ``horizon_ms_per_frame_*`` the demand predictions after it (medians, this machine).
@@ -36,11 +40,13 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.experiments.clairvoyant import compare
+from activesurv_bringup.experiments.scaling import run_scaling
 from activesurv_prediction.demands import TargetGeometry
 from activesurv_prediction.multi import MultiTracker
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SESSION_S = float(os.environ.get('ACTIVESURV_BENCH_MULTI_S', '600'))
+SCALING_S = 120.0  # s of objects in each dispatch-lockstep run of the scaling study
 POST = {'kind': 'cylinder', 'centre': [0.25, -0.2, 0.05], 'radius': 0.015, 'height': 0.1}
 
 
@@ -117,8 +123,19 @@ def _tracker_ms(n: int, frames: int = 100) -> tuple[float, float]:
     )
 
 
+def scaling() -> dict[str, Any]:
+    """Cameras per demand as objects grow, 4 or 8 cameras (``scaling_<N>obj_<n>cam_*``)."""
+    out: dict[str, Any] = {}
+    for objects in (1, 2, 3, 4):
+        for cameras in (4, 8):
+            r = run_scaling(objects, cameras, seconds=SCALING_S)
+            for key in ('cameras_per_demand', 'none_fraction', 'demands'):
+                out[f'scaling_{objects}obj_{cameras}cam_{key}'] = r[key]
+    return out
+
+
 def run() -> dict[str, Any]:
-    out: dict[str, Any] = {'session_s': SESSION_S}
+    out: dict[str, Any] = {'session_s': SESSION_S, **scaling()}
     for n in (1, 3, 10):
         out[f'tracker_ms_per_frame_{n}'], out[f'horizon_ms_per_frame_{n}'] = _tracker_ms(n)
     with tempfile.TemporaryDirectory(prefix='activesurv-multi-') as tmp:

@@ -76,3 +76,21 @@ def test_a_stream_of_two_at_once_overlaps_in_lanes_30_mm_apart() -> None:
     # One at a time is the stream it always was.
     one = ObjectStream(3, 30.0, 1.0)
     assert max(len(one.passes_at(t)) for t in ts) == 1
+
+
+def test_the_scaling_study_serves_one_object_with_k_and_copies_cameras_apart() -> None:
+    from activesurv_bringup.experiments.scaling import eight_cameras, run_scaling
+    from activesurv_dispatch.sensors import load_setup
+
+    setup = eight_cameras(load_setup(motion='fast'))
+    ids = [s.camera_id for s in setup.sensors]
+    assert ids == [f'cam{i}' for i in range(1, 9)]
+    joints = [j for s in setup.sensors for j in s.joint_names]
+    assert len(joints) == len(set(joints))  # every copy has stages of its own
+    assert np.allclose(setup.sensor('cam5').mount.base - setup.sensor('cam1').mount.base,
+                       [0.06, 0.0, 0.0])  # fmt: skip
+    one = run_scaling(1, 4, seconds=40.0)
+    assert one['demands'] >= 8
+    assert one['cameras_per_demand'] > 2.5  # k = 3 nearly always, one object
+    two = run_scaling(3, 4, seconds=40.0)
+    assert two['cameras_per_demand'] < one['cameras_per_demand']  # fewer as objects grow

@@ -17,7 +17,7 @@ simulated seconds (600 by default: the issue's 10 minutes) at rtf 1:
 * ``two_latency_median_ms``: demand instant to estimate;
 * ``scaling_<N>obj_<n>cam_cameras_per_demand`` / ``_none_fraction`` / ``_demands``: where it
   breaks, N = 1..4 objects at once with n = 4 or 8 cameras, in a dispatch lockstep (perfect
-  predictions, no rendering; ``activesurv_bringup.experiments.scaling``): assigned cameras that
+  predictions, no rendering; ``activesurv_studies.scaling``): assigned cameras that
   see the marker at the instant per demand, and the demands none sees;
 * ``tracker_ms_per_frame_1`` / ``_3`` / ``_10``: the MultiTracker's time per overhead frame
   (gating, assignment, the IMM updates) with 1, 3 and 10 objects, and
@@ -40,9 +40,9 @@ import numpy as np
 import yaml
 
 from activesurv_bringup.experiments.clairvoyant import compare
-from activesurv_bringup.experiments.scaling import run_scaling
 from activesurv_prediction.demands import TargetGeometry
 from activesurv_prediction.multi import MultiTracker
+from activesurv_studies.scaling import run_scaling
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SESSION_S = float(os.environ.get('ACTIVESURV_BENCH_MULTI_S', '600'))

@@ -41,11 +41,14 @@ ALLOWED: dict[str, set[str]] = {
         'activesurv_dispatch',
         'activesurv_stages',
     },
+    # Offline studies drive the cores without a graph (the dispatch scaling study: stages too).
     'activesurv_studies': {
         'activesurv_common',
+        'activesurv_dispatch',
         'activesurv_imaging',
         'activesurv_prediction',
         'activesurv_sim',
+        'activesurv_stages',
     },
     'activesurv_bringup': set(PACKAGES),
 }

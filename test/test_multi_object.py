@@ -79,8 +79,8 @@ def test_a_stream_of_two_at_once_overlaps_in_lanes_30_mm_apart() -> None:
 
 
 def test_the_scaling_study_serves_one_object_with_k_and_copies_cameras_apart() -> None:
-    from activesurv_bringup.experiments.scaling import eight_cameras, run_scaling
     from activesurv_dispatch.sensors import load_setup
+    from activesurv_studies.scaling import eight_cameras, run_scaling
 
     setup = eight_cameras(load_setup(motion='fast'))
     ids = [s.camera_id for s in setup.sensors]

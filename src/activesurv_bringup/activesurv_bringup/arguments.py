@@ -16,7 +16,7 @@ from typing import Any
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import parse_fault, parse_kill
-from activesurv_bringup.experiments.surveil import SurveilOptions, parse_demand_at
+from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
 from activesurv_bringup.files import dds_profile_path
 from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
 from activesurv_common.calibration import load_calibration

@@ -556,13 +556,19 @@ def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     title = f'Set {doc["set"]}' if doc.get('set') else 'continuous surveillance'
     gospa = s.get('gospa_mean')
     blocked = sum(1 for d in doc['demands'] if d.get('occluded'))
+    n_obstacles = len(doc.get('obstacles') or [])
     lines = [
         f'# activesurv {title}',
         '',
         f'{s["objects"]} objects, {s["demands"]} demands ({doc["demand_mode"]}), '
         f'{s["ok"]} ok, over {doc["simulated_seconds"]:.0f} s of simulated time; '
-        f'system {doc["system"]}, seed {doc["seed"]}; {len(doc.get("obstacles") or [])} '
-        'obstacles in the cell.',
+        f'system {doc["system"]}, seed {doc["seed"]}; '
+        + (
+            f'{n_obstacles} obstacle{"" if n_obstacles == 1 else "s"}'
+            if n_obstacles
+            else 'no obstacle'
+        )
+        + ' in the cell.',
         '',
         f'Overhead tracking: at most {s.get("max_objects_at_once")} objects at once, '
         f'{s.get("id_switches")} id switches, GOSPA mean '

@@ -162,11 +162,13 @@ class DemandBook:
     prediction until it is ``freeze`` seconds away, then stays (the dispatcher must know when
     to trigger). Only instants whose predicted point lies in ``region`` (x_min, x_max, y_min,
     y_max; None: anywhere) are demanded: where the cameras cannot serve, nothing is promised.
-    A promise is kept: an instant once demanded stays demanded while its predicted point lies
-    within ``margin`` of the region, and for good from ``freeze`` seconds before it (the
-    cameras are on their way). Without that, an object leaving across the region's edge near
-    an instant made the demand come and go with the prediction's noise, and the dispatcher
-    sent its cameras back and forth until the instant came with them in between.
+    A promise is kept: an instant is first demanded when its predicted point lies ``margin``
+    inside the region, and then stays demanded while the point lies in the region, and for
+    good from ``freeze`` seconds before it (the cameras are on their way). Without that, an
+    object leaving across the region's edge near an instant made the demand come and go with
+    the prediction's noise, and the dispatcher sent its cameras back and forth until the
+    instant came with them in between; promising up to ``margin`` outside the region instead
+    made demands the cameras could not serve.
 
     Raises:
         PredictionError: for an interval <= 0 with no lines, or bad lines/region.
@@ -226,11 +228,11 @@ class DemandBook:
 
     def _demanded(self, key: tuple[str, float], t: float, now: float, xy: Array) -> bool:
         if key in self._promised:
-            if t - now <= self.freeze or self._inside(xy, self.margin):
+            if t - now <= self.freeze or self._inside(xy):
                 return True
-            self._promised.discard(key)  # the object will be well outside: withdrawn
+            self._promised.discard(key)  # the object will be outside: withdrawn
             return False
-        if self._inside(xy):
+        if self._inside(xy, -self.margin):
             self._promised.add(key)
             return True
         return False

@@ -36,25 +36,26 @@ def test_interval_demands_run_from_the_entry_with_indices_in_time_order() -> Non
 
 def test_only_points_in_the_demand_region_are_demanded() -> None:
     p = _moving(0.02)  # at x = 0.16 at t = 3 s, 0.02 m/s
-    book = DemandBook(interval=1.0, region=[0.0, 0.21, 0.0, 0.2])
+    book = DemandBook(interval=1.0, region=[0.0, 0.215, 0.0, 0.2])  # made 10 mm inside
     book.start(0.0)
     ts = [t for _, t in book.upcoming(p, 3.0, 5)]
     assert ts == pytest.approx([4.0, 5.0])  # x = 0.18, 0.20; 0.22 is out
 
 
 def test_a_demand_once_promised_does_not_come_and_go_at_the_region_edge() -> None:
-    # The instant at t = 5 falls at x = 0.20: inside a region ending at 0.205. A filter that
-    # then sees the object 6 mm further on puts it just outside; the promise stays (within
-    # the margin), where a fresh look would drop it.
-    book = DemandBook(interval=1.0, region=[0.0, 0.205, 0.0, 0.2], freeze=0.5)
+    # The instant at t = 5 falls at x = 0.20: 15 mm inside a region ending at 0.215, so it is
+    # promised (10 mm inside at least). A filter that then sees the object 6 mm further on
+    # puts it at 0.206: still in the region, the promise stays, where a fresh look (which
+    # wants 10 mm inside) would not make it.
+    book = DemandBook(interval=1.0, region=[0.0, 0.215, 0.0, 0.2], freeze=0.5)
     book.start(0.0)
     assert [t for _, t in book.upcoming(_moving(0.02), 3.0, 5)] == pytest.approx([4.0, 5.0])
     ahead = _moving(0.02, x0=0.106)
     assert [t for _, t in book.upcoming(ahead, 3.0, 5)] == pytest.approx([4.0, 5.0])
-    fresh = DemandBook(interval=1.0, region=[0.0, 0.205, 0.0, 0.2], freeze=0.5)
+    fresh = DemandBook(interval=1.0, region=[0.0, 0.215, 0.0, 0.2], freeze=0.5)
     fresh.start(0.0)
     assert [t for _, t in fresh.upcoming(ahead, 3.0, 5)] == pytest.approx([4.0])
-    # Well outside (beyond the margin) and not yet close: withdrawn ...
+    # Outside the region and not yet close: withdrawn ...
     far = _moving(0.02, x0=0.13)
     assert [t for _, t in book.upcoming(far, 3.0, 5)] == pytest.approx([4.0])
     # ... but within the freeze time of its instant, a promise is kept whatever comes.

@@ -4,12 +4,14 @@ cameras (issue 27's study), in a dispatch lockstep.
 The dispatcher's session core (:class:`~activesurv_dispatch.session.Dispatcher`) serves a seeded
 stream of N objects at once (:class:`~activesurv_sim.stream.ObjectStream`, lanes), each demanded
 every ``interval`` s while it is in the demand region, the objects' instants staggered by
-interval / N, as ``surveil --objects-at-once N`` does. What it is told is the truth (a perfect
-predictor: the study is of the cameras, not of the tracking), the stages move as the motion
-class lets them (:class:`~activesurv_stages.kinematics.AxisSimulator`), and nothing is rendered:
-each capture's cameras are judged by eq. 1 at the pose they really had at the instant, the other
-objects' marker plates standing in the way. The 8-camera set-up is the paper's four and a copy of
-each moved 60 mm along the table (``cam5`` .. ``cam8``).
+interval / N. (The stagger is a fixed grid per lane here; ``surveil --objects-at-once N``'s
+predictor, :class:`~activesurv_prediction.multi.MultiTracker`, picks each new object's phase
+farthest from the others' when it is confirmed, to the same spacing.) It is told the truth (a
+perfect predictor: the study is of the cameras, not of the tracking); the stages move as the
+motion class lets them (:class:`~activesurv_stages.kinematics.AxisSimulator`); nothing is
+rendered: each capture's cameras are judged by eq. 1 at the pose they really had at the instant,
+the other objects' marker plates standing in the way. The 8-camera set-up is the paper's four and
+a copy of each moved 60 mm along the table (``cam5`` .. ``cam8``).
 """
 
 from __future__ import annotations

@@ -314,7 +314,7 @@ class _Monitor:
         from rosgraph_msgs.msg import Clock
         from std_msgs.msg import String
 
-        from activesurv_interfaces.msg import TargetEstimate
+        from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 
         self.rclpy = rclpy
         self.node = rclpy.create_node('activesurv_monitor', namespace=namespace or None)
@@ -330,16 +330,31 @@ class _Monitor:
         )
         self.recorded: dict[str, int] = {}
         self.node.create_subscription(String, '/activesurv/recorder_status', self._on_recorder, 10)
-        self.node.create_subscription(
-            TargetEstimate,
-            'target_estimate',
-            self._on_estimate,
-            QoSProfile(
-                depth=50,
-                reliability=ReliabilityPolicy.RELIABLE,
-                durability=DurabilityPolicy.TRANSIENT_LOCAL,
-            ),
+        events = QoSProfile(
+            depth=50,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
         )
+        self.node.create_subscription(TargetEstimate, 'target_estimate', self._on_estimate, events)
+        # Per-demand events heard here, by resolved topic name: the run stops only once the
+        # recorder has as many of each (a reliable reader holds every message after a lost one
+        # until the writer repairs it, which over a loaded network can take seconds).
+        self._estimate_topic = self.node.resolve_topic_name('target_estimate')
+        self.heard: dict[str, set[tuple[int, str]]] = {self._estimate_topic: set()}
+        for msg_type, name in (
+            (MarkerObservation, 'marker_observations'),
+            (CaptureRequest, 'capture_request'),
+        ):
+            topic = self.node.resolve_topic_name(name)
+            self.heard[topic] = set()
+            self.node.create_subscription(
+                msg_type,
+                name,
+                lambda m, t=topic: self.heard[t].add(
+                    (int(m.demand_index), str(getattr(m, 'camera_id', '')))
+                ),
+                events,
+            )
 
     def _on_clock(self, msg: Any) -> None:
         self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
@@ -350,6 +365,12 @@ class _Monitor:
 
     def _on_estimate(self, msg: Any) -> None:
         self.estimates[int(msg.demand_index)] = msg
+        self.heard[self._estimate_topic].add((int(msg.demand_index), ''))
+
+    def unrecorded(self) -> dict[str, int]:
+        """Per-demand event topics with messages heard here but not (yet) in the bag."""
+        out = {t: len(k) - self.recorded.get(t, 0) for t, k in self.heard.items()}
+        return {t: n for t, n in out.items() if n > 0}
 
     def spin(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -570,11 +591,13 @@ def _run(
                     f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
                     f'after {until.wall_limit:.0f} s of wall time)'
                 )
-        # Stop only when the recorder has every estimate (a restarted node is matched late).
+        # Stop only when the recorder has every request, observation and estimate heard here
+        # (a restarted node is matched late; a lost datagram holds a reliable reader's later
+        # messages until the writer's next heartbeat repairs it).
         deadline = time.monotonic() + 20.0
-        while monitor.recorded.get('/target_estimate', 0) < len(monitor.estimates):
+        while missing := monitor.unrecorded():
             if time.monotonic() > deadline:
-                progress('the recorder is missing estimates after 20 s; stopping anyway')
+                progress(f'the recorder is missing {missing} after 20 s; stopping anyway')
                 break
             monitor.spin(0.25)
         monitor.spin(0.5)  # the recorder gets the last messages

@@ -35,7 +35,9 @@ def frame(renderer: Renderer, pose: object, t: float) -> np.ndarray:
     return renderer.render(pose, scene, SensorNoise(0.0, 0.0, 0.0))  # type: ignore[arg-type]
 
 
-def core(trigger: str = 'free', correct: bool = True, delay: float = 0.0) -> CaptureCore:
+def core(
+    trigger: str = 'free', correct: bool = True, delay: float = 0.0, pointing: float = 1e-4
+) -> CaptureCore:
     cam = dynamic_camera('cam1')
     pose = look_at(P0 + np.array([-0.05, -0.40, 0.0]), P0 + V * T_J)
     config = ImagerConfig(
@@ -45,6 +47,7 @@ def core(trigger: str = 'free', correct: bool = True, delay: float = 0.0) -> Cap
         frame_rate=RATE,
         exposure_delay=delay,
         motion_correction=correct,
+        pointing_std=pointing,
     )
     return CaptureCore(config, pose, SensorModel.load(None), lambda g: g, cam)
 
@@ -128,8 +131,8 @@ def test_a_dropped_nearest_frame_gives_its_neighbour_corrected() -> None:
 def test_two_frames_lost_in_a_row_still_answer_with_a_wider_covariance() -> None:
     # A stalled machine loses the frames either side of the instant (seen in the lab: frames
     # 61 ms before and 50 ms after); the nearest that came is taken, moved to the instant, and
-    # its x-y variance grows by (velocity_std * offset)^2.
-    c, ref = core(), core()
+    # its x-y variance grows by (velocity_std * offset)^2 (no pointing error to compare with).
+    c, ref = core(pointing=0.0), core(pointing=0.0)
     for k in (c, ref):
         k.request(0, T_J, NORMAL, V)
     k0 = int(np.floor((T_J - PHASE) * RATE))
@@ -155,3 +158,32 @@ def test_two_frames_lost_in_a_row_still_answer_with_a_wider_covariance() -> None
     (none,) = far.poll(T_J + 2.0)
     assert none.status is ObservationStatus.NO_IMAGE
     assert 'nearest' in none.reason
+
+
+def test_every_reading_carries_the_calibrations_pointing_error() -> None:
+    # The sensor model knows the camera's pose exactly; a commissioned camera knows where it
+    # points to ~0.1 mrad: the normal's variances grow by pointing_std^2, the position's across
+    # the line of sight by (d pointing_std)^2 and along it not at all.
+    readings = []
+    for std in (0.0, 2e-4):
+        c = core(trigger='hardware', pointing=std)
+        c.request(0, T_J, NORMAL, V)
+        feed(c, [T_J])
+        (obs,) = c.poll(T_J + 0.1)
+        assert obs.status is ObservationStatus.OK, obs.reason
+        readings.append(obs)
+    plain, grown = readings
+    assert plain.covariance is not None
+    assert grown.covariance is not None
+    assert plain.position is not None
+    diff = grown.covariance - plain.covariance
+    np.testing.assert_allclose(np.diag(diff[3:, 3:]), (2e-4) ** 2, rtol=1e-9)
+    los = plain.position - c.mount.t  # type: ignore[union-attr]
+    d = float(np.linalg.norm(los))
+    los /= d
+    assert float(los @ diff[:3, :3] @ los) == pytest.approx(0.0, abs=1e-15)
+    across = np.cross(los, [0.0, 0.0, 1.0])
+    across /= np.linalg.norm(across)
+    assert float(across @ diff[:3, :3] @ across) == pytest.approx((d * 2e-4) ** 2, rel=1e-9)
+    with pytest.raises(ImagingError, match='pointing_std'):
+        ImagerConfig('cam1', pointing_std=-1.0)

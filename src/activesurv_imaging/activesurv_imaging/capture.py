@@ -12,7 +12,8 @@ taken, up to ``free_reach`` periods away (2.25: two frames in a row lost, as whe
 stalls, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is reported, the marker
 position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``),
 and its covariance grows by ``(velocity_std (t_j - t_frame))^2`` in x and y: what the
-prediction's velocity does not know of the motion. A frame's stamp minus ``exposure_delay``
+prediction's velocity does not know of the motion. Every reading's covariance also carries the
+calibration's ``pointing_std`` (:func:`with_pointing`). A frame's stamp minus ``exposure_delay``
 is its exposure instant (a driver that stamps frames on arrival stamps them after exposure and
 read-out).
 
@@ -73,6 +74,9 @@ class ImagerConfig:
             as occluded.
         several_objects: several objects at once: of the markers in view, measure the one
             nearest the demand's predicted position (15 mm at most), never another's.
+        pointing_std: rad the calibration leaves unknown of where the camera points, added to
+            every reading's covariance (:func:`with_pointing`; 0.1 mrad: what commissioned
+            simulated rigs show, see docs/design-choices.md).
     """
 
     camera_id: str
@@ -90,6 +94,7 @@ class ImagerConfig:
     motion_correction: bool = True
     free_reach: float = 2.25
     velocity_std: float = 0.002
+    pointing_std: float = 1e-4
     obstacles: tuple[Obstacle, ...] = ()
     several_objects: bool = False
 
@@ -106,6 +111,8 @@ class ImagerConfig:
             raise ImagingError(f'free_reach must be >= 0.5 periods, got {self.free_reach}')
         if not (math.isfinite(self.velocity_std) and self.velocity_std >= 0.0):
             raise ImagingError(f'velocity_std must be >= 0 m/s, got {self.velocity_std}')
+        if not (math.isfinite(self.pointing_std) and 0.0 <= self.pointing_std <= 0.1):
+            raise ImagingError(f'pointing_std must be in [0, 0.1] rad, got {self.pointing_std}')
 
     def to_parameters(self) -> dict[str, Any]:
         """The ``imager`` node's parameters saying the same (``obstacles`` excepted: the node
@@ -297,7 +304,11 @@ class CaptureCore(Generic[F]):
             c.inject_flip,
             r.position if c.several_objects else None,
         )
-        obs = replace(obs, frame_offset=stamp - r.demand_time)
+        obs = replace(
+            obs,
+            frame_offset=stamp - r.demand_time,
+            covariance=with_pointing(obs.covariance, obs.position, T.t, c.pointing_std),
+        )
         if (
             obs.status in (ObservationStatus.NOT_FOUND, ObservationStatus.REJECTED)
             and c.obstacles
@@ -319,6 +330,33 @@ class CaptureCore(Generic[F]):
                 obs, position=obs.position + shift, motion_correction=shift, covariance=cov
             )
         return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
+
+
+def with_pointing(
+    cov: NDArray[np.float64] | None,
+    position: NDArray[np.float64] | None,
+    camera_centre: NDArray[np.float64],
+    pointing_std: float,
+) -> NDArray[np.float64] | None:
+    """A world covariance grown by what the camera's calibration does not know of where it
+    points: ``pointing_std`` (rad) turns the measured normal (``pointing_std^2`` on each of its
+    components) and moves the marker across the line of sight by ``d pointing_std``.
+
+    The sensor model (Appendix A) was measured with the camera's pose known exactly; a
+    commissioned rig knows it to its calibration (the principal point to ~1 px, 0.2 mrad), and
+    a world-frame reading carries that too.
+    """
+    if cov is None or position is None or pointing_std <= 0.0:
+        return cov
+    sight = np.asarray(position, dtype=np.float64) - np.asarray(camera_centre, dtype=np.float64)
+    d = float(np.linalg.norm(sight))
+    if not (math.isfinite(d) and d > 0.0):
+        return cov
+    los = sight / d
+    out = np.array(cov, dtype=np.float64, copy=True)
+    out[:3, :3] += (d * pointing_std) ** 2 * (np.eye(3) - np.outer(los, los))
+    out[3:, 3:] += pointing_std**2 * np.eye(3)
+    return out
 
 
 def _finite(v: ArrayLike | None) -> NDArray[np.float64] | None:

@@ -62,6 +62,7 @@ PARAMS = (
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
     Param('free_reach', 2.25, 'free-running: periods the taken frame may be off', minimum=0.5),
     Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),
+    Param('pointing_std', 1e-4, 'rad: calibration pointing error', minimum=0.0, maximum=0.1),
     Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
     Param('several_objects', False, 'measure the marker nearest the predicted one of several'),
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
@@ -110,9 +111,8 @@ class ImagerNode(Node):
         # reliably, and then nothing needs to be lost.
         image_qos = qos.SENSOR_RELIABLE if v['reliable_images'] else qos.SENSOR
         self.create_subscription(Image, topics.image(self.camera_id), self._on_image, image_qos)
-        self.create_subscription(
-            CameraInfo, topics.camera_info(self.camera_id), self._on_info, qos.SENSOR
-        )
+        info = topics.camera_info(self.camera_id)
+        self.create_subscription(CameraInfo, info, self._on_info, qos.SENSOR)
         if self.core.joint_names:
             # Reliable with the simulator and replays: the state latched at a demand instant
             # must not be dropped in a burst (a replay then measured with another pose).

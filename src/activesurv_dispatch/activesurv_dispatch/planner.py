@@ -210,7 +210,11 @@ class DispatchPlanner:
         pose is reckoned from rest at the camera's current position, so a camera still on its
         way underrates what it can reach, and re-aiming it at each new prediction would make
         it stop short (at the edge of that box) frame after frame. The old pose stays when it
-        sees the new prediction better."""
+        sees the new prediction better, and when neither sees it, when it points nearer to it:
+        the new one, from rest where the camera is now, may lie short of where the old one
+        (planned with more time) was taking it, and re-aiming there pulls the camera back from
+        the target frame after frame (two objects at once: 12 of 318 demands had a camera stop
+        3-5 degrees short)."""
         if old is None:
             return new
         vis, d, b, inside = view_batch(
@@ -221,9 +225,21 @@ class DispatchPlanner:
             self.model,
             occluders=self.occluders(demand),
         )
-        if float(vis[0]) > new.visibility:
+        keep = float(vis[0]) > new.visibility or (
+            new.visibility <= 0.0
+            and self._off_axis(camera_id, old.joints, demand)
+            < self._off_axis(camera_id, new.joints, demand)
+        )
+        if keep:
             return Candidate(old.joints, float(vis[0]), float(d[0]), float(b[0]), bool(inside[0]))
         return new
+
+    def _off_axis(self, camera_id: str, q: Array, demand: Demand) -> float:
+        """Angle (rad) between the camera's optical axis at ``q`` and its line of sight to
+        ``demand``'s marker."""
+        centres, R = camera_frames(self.sensors[camera_id], np.asarray(q)[None, :])
+        p = R[0].T @ (demand.position - centres[0])
+        return float(math.atan2(math.hypot(p[0], p[1]), p[2]))
 
     def _blocked(self, camera_id: str, q: Array, demand: Demand) -> bool:
         """Whether an occluder stands between the camera at ``q`` and ``demand``'s marker."""

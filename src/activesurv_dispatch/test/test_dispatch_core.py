@@ -13,7 +13,9 @@ from hypothesis import strategies as st
 
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
+    Candidate,
     Target,
+    aim_yaw,
     best_achievable_pose,
     reachable_box,
     view_batch,
@@ -317,3 +319,29 @@ def test_assignment_with_too_few_cameras_fills_up_when_they_are_heard() -> None:
     later = planner.plan(0.3, [d0], joints).assigned()
     assert set(first) <= set(later)
     assert len(later) == 3
+
+
+def test_a_replan_that_sees_nothing_keeps_the_pose_that_points_nearer() -> None:
+    # Two objects at once: a camera swung from one object to the other is planned at the edge
+    # of what it can reach; replanned from where it is on the way, the new best pose lies
+    # short of the old one and neither is sure to see the marker. Re-aiming short pulled the
+    # camera back 3-5 degrees from the target; the pose that points nearer to it stays.
+    setup = load_setup(motion='fast')
+    planner = DispatchPlanner(setup, MODEL, k=3, rho=1.0)
+    wide = np.diag([4e-4, 4e-4, 2.5e-7, 1e-4, 1e-4, 1e-4])  # 20 mm: never sure to be in view
+    demand = Demand(0, 3.0, np.array([0.22, 0.10, 0.05]), NORMAL, wide)
+    cam = next(s for s in setup.sensors if not s.has_linear)
+    aim = float(aim_yaw(cam, np.zeros(1), demand.target)[0])
+    near = Candidate(np.array([aim - 0.04]), 0.0, math.nan, math.nan, False)
+    short = Candidate(np.array([aim - 0.08]), 0.0, math.nan, math.nan, False)
+    assert view_batch(cam, near.joints[None, :], demand.target, 0.0125, MODEL)[0][0] == 0.0
+    kept = planner._better(cam.camera_id, near, short, demand)
+    assert np.allclose(kept.joints, near.joints)
+    # ... and the other way round: a new pose nearer to the target replaces an old one.
+    moved = planner._better(cam.camera_id, short, near, demand)
+    assert np.allclose(moved.joints, near.joints)
+    # A new pose that sees the marker always wins over one that does not.
+    sharp = Demand(0, 3.0, demand.position, NORMAL, COV)
+    seeing = best_achievable_pose(cam, np.array([aim]), sharp.target, 0.0, MODEL, 0.0125)
+    assert seeing.visibility > 0.0
+    assert np.allclose(planner._better(cam.camera_id, near, seeing, sharp).joints, aim)

@@ -49,6 +49,33 @@ def test_template_reads_back_and_matches_the_layout(tmp_path: Path) -> None:
     assert 'cam4: topic /cam4/image_raw, free at 30 Hz' in check.stdout
 
 
+def test_the_hardware_files_layout_is_the_rig_as_designed(tmp_path: Path) -> None:
+    # A lab whose cameras stand elsewhere names its own set-up YAML in geometry.layout: a run's
+    # nominal rig, its cameras and the experiment's set-up come from it, not from the paper's.
+    import yaml
+
+    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.rig.hardware import hardware_choice
+    from activesurv_dispatch.sensors import default_setup_path
+
+    setup = yaml.safe_load(default_setup_path().read_text())
+    cam1 = next(c for c in setup['cameras'] if c['id'] == 'cam1')
+    cam1['mount']['base'][1] -= 0.02  # the lab's rail stands 20 mm further back
+    (tmp_path / 'our_cell.yaml').write_text(yaml.safe_dump(setup))
+    lab = tmp_path / 'lab.yaml'
+    subprocess.run([ACTIVESURV, 'hardware', 'template', '--out', str(lab)], check=True)
+    doc = yaml.safe_load(lab.read_text())
+    doc['geometry']['layout'] = 'our_cell.yaml'
+    lab.write_text(yaml.safe_dump(doc))
+    choice = hardware_choice(load_hardware(lab), 'truth')
+    paper = nominal().cameras['cam1'].mount.base
+    ours = choice.rig.cameras['cam1'].mount.base
+    assert ours[1] == pytest.approx(paper[1] - 0.02)
+    assert choice.calibration.mounts['cam1'].base[1] == pytest.approx(paper[1] - 0.02)
+    exp = load_experiment('A', 'fast', rig=choice)
+    assert exp.setup.sensor('cam1').mount.base[1] == pytest.approx(paper[1] - 0.02)
+
+
 @pytest.mark.parametrize(
     ('edit', 'message'),
     [

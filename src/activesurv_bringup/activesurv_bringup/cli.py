@@ -452,7 +452,7 @@ def experiment(
         hw = read(hardware)
         choice = hardware_choice(hw, calibration)
         exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
-        exp.config['predictor']['model'] = predictor
+        exp = exp.with_predictor(predictor)
         started = time.monotonic()
         run_hardware(exp, hw, out, opts, say, home, motion_correction)
         result = load_run(out)
@@ -464,7 +464,7 @@ def experiment(
     if set_name in SCENES:
         return _scene(set_name, system, out, seed, choice, opts, say)
     exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
-    exp.config['predictor']['model'] = predictor
+    exp = exp.with_predictor(predictor)
     started = time.monotonic()
 
     doc: dict[str, Any]

@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +78,27 @@ class Experiment:
     @property
     def start_time(self) -> float:
         return float(self.config['object']['start_time'])
+
+    @property
+    def object_speed(self) -> tuple[float, float]:
+        """The object's path speed (m/s) and acceleration (m/s^2)."""
+        o = self.config['object']
+        return float(o['speed']), float(o['acceleration'])
+
+    @property
+    def overhead_rate(self) -> float:
+        """Frames per second of the overhead camera."""
+        return float(self.config['overhead']['rate'])
+
+    @property
+    def plan_latency(self) -> float:
+        """Lockstep only: s between an overhead frame and the plan made on it."""
+        return float(self.config.get('lockstep', {}).get('plan_latency', 0.0))
+
+    def with_predictor(self, model: str) -> Experiment:
+        """The same experiment with another prediction model (``imm`` or ``ca``)."""
+        config = {**self.config, 'predictor': {**self.config['predictor'], 'model': model}}
+        return replace(self, config=config)
 
     def table_config(self) -> TableConfig:
         """What the xy table is told in this experiment: the actual path, the object."""
@@ -287,7 +308,7 @@ def load_experiment(
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
         raise ConfigError(f'experiment config {path}: {exc!r}') from exc
     model = SensorModel.load()
-    setup = load_setup(motion=system)
+    setup = load_setup(rig.layout if rig is not None else None, motion=system)
     belief = ''
     if rig is not None:
         try:

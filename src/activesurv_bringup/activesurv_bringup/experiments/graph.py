@@ -89,7 +89,6 @@ def graph_specs(
     camera's nodes go on host ``camN`` and the rest on ``core``; ``preview_rate`` (Hz) makes
     the dynamic cameras stream previews for viewers (never recorded).
     """
-    cfg = exp.config
     sim = {'use_sim_time': True}
     files = rig_files(exp, bag.parent)
     over = pose_to_list(exp.overhead(truth=False)[1])  # as the system believes it
@@ -127,7 +126,7 @@ def graph_specs(
                 'mount.static_pose': over,
                 **truth,
                 **info('overhead'),
-                'frame_rate': float(cfg['overhead']['rate']),
+                'frame_rate': exp.overhead_rate,
                 'seed': exp.seed * 100 + 99,
             },
         ),
@@ -204,7 +203,7 @@ def locator_spec(
         parameters={
             **clock,
             'camera_pose': over,
-            'marker_height': float(exp.config['object']['top_height']),
+            'marker_height': exp.object_model.top_height,
             'marker_radius': marker_radius,
         },
         remappings=remappings or {},

@@ -89,7 +89,6 @@ def run_lockstep(
         track_log: if given, receives the overhead tracks and the truth at every frame
             (:func:`activesurv_bringup.experiments.tracking.track_metrics`).
     """
-    cfg = exp.config
     rng = np.random.default_rng(exp.seed)
     noise = SensorNoise()
     geometry = ObjectGeometry(exp.setup.marker_radius, exp.setup.marker_radius)
@@ -132,8 +131,8 @@ def run_lockstep(
 
     records: dict[int, DemandRecord] = {}
     predicted = PredictionLog()
-    dt = 1.0 / float(cfg['overhead']['rate'])
-    latency = float(cfg.get('lockstep', {}).get('plan_latency', 0.0))
+    dt = 1.0 / exp.overhead_rate
+    latency = exp.plan_latency
     if not 0.0 <= latency < dt:
         raise ConfigError(f'lockstep plan_latency must be in [0, {dt:g}) s, got {latency:g}')
     n_steps = int(np.ceil(exp.end_time / dt)) + 1

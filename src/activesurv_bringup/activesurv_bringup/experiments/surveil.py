@@ -57,7 +57,6 @@ from activesurv_studies.tracking import TrackRecorder, track_metrics
 
 def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
     """What the bag stores about the session (the stream is regenerated from it)."""
-    obj = exp.config['object']
     return {
         'mode': 'surveil',
         'system': s.system,
@@ -69,8 +68,8 @@ def surveil_info(exp: Experiment, s: SurveilOptions) -> dict[str, Any]:
             'first_entry': FIRST_ENTRY,
             'kinds': list(s.path_kinds),
             'at_once': int(s.objects_at_once),
-            'speed': float(obj['speed']),
-            'acceleration': float(obj['acceleration']),
+            'speed': exp.object_speed[0],
+            'acceleration': exp.object_speed[1],
             **({'script': list(s.script)} if s.script else {}),
         },
         **({'set': s.set_name} if s.set_name else {}),

@@ -41,7 +41,7 @@ from activesurv_bringup.rig.board_views import (
     simulated_look,
     simulated_overhead_look,
 )
-from activesurv_bringup.rig.rigs import nominal
+from activesurv_bringup.rig.rigs import layout_file, nominal
 from activesurv_bringup.specs import bridge_spec, source_specs, stage_spec
 from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
@@ -478,6 +478,7 @@ def commission_all(
     progress: Progress,
     name: str,
     stations: int | None = None,
+    layout: Path | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
 
@@ -486,8 +487,9 @@ def commission_all(
         overhead_look: the overhead camera looking at the top board at a table position.
         rig: the simulated truth, to report each estimate's error (None when live).
         stations: at most this many stations per dynamic camera (None: all).
+        layout: the set-up YAML of the rig as designed (None: the paper's).
     """
-    nominal_cal = nominal().truth()
+    nominal_cal = nominal(layout).truth()
     fixture = BoardFixture()
     models = dict(nominal_cal.cameras)
     mounts = dict(nominal_cal.mounts)
@@ -576,11 +578,12 @@ def run_commission(
     from activesurv_dispatch.sensors import load_setup
     from activesurv_sim.rig import save_rig
 
-    setup = load_setup(motion='fast')
+    layout = None if hardware is None else layout_file(hardware.geometry.layout)
+    setup = load_setup(layout, motion='fast')
     chosen = check_cameras(setup, cameras)
     new_output_dir(out)
     work = out / 'work'
-    nominal_cal = nominal().truth()
+    nominal_cal = nominal(layout).truth()
     nominal_cal.save(work / 'factory')  # what the camera drivers are shipped with
     launcher = None
     if rig is not None:
@@ -621,6 +624,7 @@ def run_commission(
             progress,
             str(out),
             stations,
+            layout,
         )
         report['seconds'] = round(time.monotonic() - started, 1)
         write_calibration(out, cal, report)

@@ -16,7 +16,13 @@ import yaml
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.files import config_path
 from activesurv_bringup.rig.commission import TABLE_RANGE
-from activesurv_bringup.rig.rigs import CALIBRATIONS, RigChoice, nominal, resolve_calibration
+from activesurv_bringup.rig.rigs import (
+    CALIBRATIONS,
+    RigChoice,
+    layout_file,
+    nominal,
+    resolve_calibration,
+)
 from activesurv_dispatch.sensors import load_setup
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.hardware_file import (
@@ -62,33 +68,40 @@ def paper_rig(name: str = 'paper-lab', namespace: str = '') -> TemplateRig:
     )
 
 
+def hardware_layout(hw: Hardware) -> Path | None:
+    """The set-up YAML of a hardware file's ``geometry.layout`` (None: the paper's)."""
+    return layout_file(hw.geometry.layout)
+
+
 def hardware_choice(hw: Hardware, calibration: str | None) -> RigChoice:
     """A hardware run's calibration (``calibration`` or the hardware file's own directory).
 
     The simulated rig of a :class:`RigChoice` plays no part in a hardware run (the nominal one
-    stands in); the calibration is what every node is told.
+    of the file's ``geometry.layout`` stands in); the calibration is what every node is told,
+    and a camera it does not hold keeps the layout's nominal mount.
 
     Raises:
         ConfigError: without a commissioned calibration, or one that misses a camera.
     """
     cal_dir = Path(calibration) if calibration else hw.calibration
+    designed = nominal(hardware_layout(hw))
     if calibration in CALIBRATIONS:
-        cal = resolve_calibration(str(calibration), nominal())
+        cal = resolve_calibration(str(calibration), designed)
     else:
         if not (cal_dir / 'commission.json').is_file() and not any(cal_dir.glob('*.yaml')):
             raise ConfigError(
                 f'no calibration at {cal_dir}: commission the rig first (activesurv commission '
                 f'--live --hardware {hw.path} --out {cal_dir})'
             )
-        cal = resolve_calibration(str(cal_dir), nominal())
-    layout = {s.camera_id for s in load_setup().sensors}
+        cal = resolve_calibration(str(cal_dir), designed)
+    layout = {s.camera_id for s in load_setup(hardware_layout(hw)).sensors}
     if set(hw.cameras) != layout:
         raise ConfigError(
             f'{hw.path}: a run needs every camera of the layout {sorted(layout)}; the file has '
             f'{sorted(hw.cameras)}'
         )
     label = calibration if calibration in CALIBRATIONS else str(cal_dir.resolve())
-    return RigChoice(nominal(), f'hardware {hw.path}', cal, str(label))
+    return RigChoice(designed, f'hardware {hw.path}', cal, str(label), hardware_layout(hw))
 
 
 def read(path: Path | str) -> Hardware:

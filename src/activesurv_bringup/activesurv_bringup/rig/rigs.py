@@ -44,9 +44,10 @@ from activesurv_sim.rig import (
 CALIBRATIONS = ('nominal', 'truth')
 
 
-def nominal_mounts() -> dict[str, CameraMount]:
-    """The paper set-up's mounts by camera id (``paper_setup.yaml``)."""
-    return {s.camera_id: s.mount for s in load_setup().sensors}
+def nominal_mounts(layout: Path | str | None = None) -> dict[str, CameraMount]:
+    """A set-up's mounts by camera id (``layout``: a set-up YAML; default the paper's,
+    ``paper_setup.yaml``)."""
+    return {s.camera_id: s.mount for s in load_setup(layout).sensors}
 
 
 def nominal_overhead_pose() -> list[float]:
@@ -57,9 +58,15 @@ def nominal_overhead_pose() -> list[float]:
         raise ConfigError(f'experiments.yaml: cannot read overhead.pose: {exc!r}') from exc
 
 
-def nominal() -> Rig:
-    """The paper's rig as designed (Table I optics, ``paper_setup.yaml`` mounts)."""
-    return nominal_rig(nominal_mounts(), nominal_overhead_pose())
+def layout_file(layout: str) -> Path | None:
+    """The set-up YAML a hardware file's ``geometry.layout`` names (None: ``paper``)."""
+    return None if layout == 'paper' else Path(layout)
+
+
+def nominal(layout: Path | str | None = None) -> Rig:
+    """The rig as designed: Table I optics and the mounts of ``layout`` (a set-up YAML, as a
+    hardware file's ``geometry.layout`` names it; default the paper's ``paper_setup.yaml``)."""
+    return nominal_rig(nominal_mounts(layout), nominal_overhead_pose())
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,7 @@ class RigChoice:
     rig_source: str
     calibration: Calibration
     calibration_source: str
+    layout: Path | None = None  # the set-up YAML of the rig as designed (None: the paper's)
 
     def describe(self) -> dict[str, str | int | None]:
         return {

@@ -15,7 +15,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,12 +26,14 @@ from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
+from activesurv_common.calibration import pose_to_list
+from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.runner import NodeRunner
+from activesurv_sim.rig import save_rig
 
 if TYPE_CHECKING:
     from activesurv_launch.netns import NetnsHosts
-from activesurv_common.calibration import pose_to_list
 
 Progress = Callable[[str], None]
 
@@ -41,9 +43,6 @@ def rig_files(exp: Experiment, out: Path) -> dict[str, str]:
     into ``out/rig`` for the nodes; returns the paths (empty without a rig)."""
     if exp.rig is None:
         return {}
-    from activesurv_dispatch.sensors import setup_to_dict
-    from activesurv_sim.rig import save_rig
-
     d = out / 'rig'
     d.mkdir(parents=True, exist_ok=True)
     save_rig(exp.rig.rig, d / 'rig.yaml')
@@ -67,8 +66,6 @@ def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
         }
     )
     if exp.rig is not None:  # what the system was told: a replay's imagers are told the same
-        from activesurv_dispatch.sensors import setup_to_dict
-
         info['setup'] = setup_to_dict(exp.setup)
     return info
 
@@ -167,8 +164,6 @@ def graph_specs(
             NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
         )
     if split_hosts:
-        from dataclasses import replace
-
         specs = [
             replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
             for s in specs
@@ -308,6 +303,7 @@ class _Monitor:
     def __init__(
         self, expected_nodes: Sequence[str], time_origin: float | None = None, namespace: str = ''
     ) -> None:
+        # The monitor is a node of the run: rclpy only when a run starts (as run_graph).
         import rclpy
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
@@ -346,14 +342,13 @@ class _Monitor:
         ):
             topic = self.node.resolve_topic_name(name)
             self.heard[topic] = set()
-            self.node.create_subscription(
-                msg_type,
-                name,
-                lambda m, t=topic: self.heard[t].add(
-                    (int(m.demand_index), str(getattr(m, 'camera_id', '')))
-                ),
-                events,
-            )
+            self.node.create_subscription(msg_type, name, self._hear(topic), events)
+
+    def _hear(self, topic: str) -> Callable[[Any], None]:
+        def on_event(msg: Any) -> None:
+            self.heard[topic].add((int(msg.demand_index), str(getattr(msg, 'camera_id', ''))))
+
+        return on_event
 
     def _on_clock(self, msg: Any) -> None:
         self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
@@ -477,7 +472,7 @@ def run_graph(
         ConfigError: for options that do not fit this run (a node to kill that is not in it).
         NodeDiedError: if a node dies, or the graph does not come up in time.
     """
-    import rclpy
+    import rclpy  # only a run needs the ROS client library: report and replay tools load without
 
     opts = options or RunOptions()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -529,7 +524,7 @@ def _run(
     env = dict(os.environ)
     owns_rclpy = not rclpy.ok()
     if owns_rclpy:
-        from rclpy.signals import SignalHandlerOptions
+        from rclpy.signals import SignalHandlerOptions  # with rclpy above
 
         # SIGINT stays Python's (KeyboardInterrupt, or a session's own handler): the nodes are
         # stopped in order in ``finally``, rather than the monitor's context shut under it.
@@ -541,7 +536,7 @@ def _run(
     )
     launcher: NodeRunner
     if opts.compose:
-        from activesurv_launch.compose import Composition
+        from activesurv_launch.compose import Composition  # every node's module in-process
 
         launcher = Composition()
     else:

@@ -204,6 +204,7 @@ def summary_table(docs: Sequence[dict[str, Any]]) -> str:
 
 def plot_runs(docs: Sequence[dict[str, Any]], out_dir: Path) -> list[Path]:
     """Figs. 10-15: visibility, position and orientation error per demand, per set."""
+    # matplotlib (heavy) only when a figure is drawn
     import matplotlib
 
     matplotlib.use('Agg')
@@ -241,6 +242,7 @@ def plot_runs(docs: Sequence[dict[str, Any]], out_dir: Path) -> list[Path]:
 def plot_predictions(doc: dict[str, Any], path: Path) -> Path | None:
     """Predicted vs true demand points (top view) with the predictions' 3-sigma ellipses, as
     the dispatcher had them 2 s before each instant and at its capture request."""
+    # matplotlib (heavy) only when a figure is drawn
     import matplotlib
 
     matplotlib.use('Agg')

@@ -478,6 +478,7 @@ def session_table(doc: dict[str, Any]) -> str:
 def _top_view(doc: dict[str, Any], path: Path) -> Path:
     """The table from above: every object's demand points (true, and the estimates), each
     object in its colour, failed demands marked, and the cell's obstacles."""
+    # matplotlib (heavy) only when a figure is drawn
     import matplotlib
 
     matplotlib.use('Agg')
@@ -524,6 +525,7 @@ def _top_view(doc: dict[str, Any], path: Path) -> Path:
 
 def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     """``report.md`` and ``session.png`` (error and latency of every demand over time)."""
+    # matplotlib (heavy) only when a figure is drawn
     import matplotlib
 
     matplotlib.use('Agg')

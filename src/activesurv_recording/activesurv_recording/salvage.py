@@ -14,6 +14,7 @@ channel and message records at top level or inside uncompressed or zstd/lz4 chun
 
 from __future__ import annotations
 
+import shutil
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -227,8 +228,6 @@ def reindex(bag: Path) -> ReindexReport:
     ts = typestore()
     tmp = bag.with_name(bag.name + '.reindex-tmp')
     if tmp.exists():
-        import shutil
-
         shutil.rmtree(tmp)
     writer = Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
@@ -269,13 +268,9 @@ def reindex(bag: Path) -> ReindexReport:
                 last = max(last, t_ns)
         writer.close()
     except Exception as exc:
-        import shutil
-
         shutil.rmtree(tmp, ignore_errors=True)
         raise BagError(f'cannot rebuild {bag}: {exc}') from exc
     if count == 0:
-        import shutil
-
         shutil.rmtree(tmp, ignore_errors=True)
         raise BagError(f'{bag}: no complete message could be recovered ({scans[0].stop_reason})')
     bag.rename(damaged)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -28,6 +29,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import yaml
 from numpy.typing import NDArray
@@ -47,7 +49,7 @@ from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
-from activesurv_dispatch.sensors import Setup
+from activesurv_dispatch.sensors import Setup, load_setup
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import (
@@ -62,7 +64,7 @@ from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
-from activesurv_sim.rig import Rig
+from activesurv_sim.rig import Rig, save_rig
 
 Array = NDArray[np.float64]
 Progress = Callable[[str], None]
@@ -368,7 +370,6 @@ def commission_overhead(
     height trade exactly (only f/Z is seen) and the principal point trades with the tilt, so
     those stay nominal and the pose and k1 take up the rest: what the overhead locator needs
     is the image-to-table mapping at the markers' height, and that is what is fitted."""
-    import cv2
 
     top = board_points(fixture.top_squares, fixture.top_square_size)
     plane_pts, image_pts = [], []
@@ -571,12 +572,7 @@ def run_commission(
     Raises:
         ConfigError: for unknown cameras; NodeDiedError: if the graph does not answer.
     """
-    import os
-
-    import rclpy
-
-    from activesurv_dispatch.sensors import load_setup
-    from activesurv_sim.rig import save_rig
+    import rclpy  # only commissioning itself needs the ROS client library (offline: not)
 
     layout = None if hardware is None else layout_file(hardware.geometry.layout)
     setup = load_setup(layout, motion='fast')

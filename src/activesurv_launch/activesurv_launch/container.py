@@ -61,6 +61,7 @@ def load_members(path: Path) -> list[NodeSpec]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # rclpy in the container process only: the launcher that imports this module needs none.
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions

@@ -200,6 +200,7 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
     (the paper placed them there before each experiment; a static system never moves them)."""
 
     def place(monitor: Any, progress: Any) -> None:
+        # ROS messages only when a run places its cameras: the report tools load this module.
         from sensor_msgs.msg import JointState
 
         from activesurv_common.ros import qos, topics

@@ -102,6 +102,7 @@ def run_replay(
     Raises:
         BagError: for an unreadable bag; NodeDiedError if a replay node dies.
     """
+    # The ROS client library only when a replay runs (comparing bags needs none).
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock

@@ -215,6 +215,7 @@ def default_setup_path() -> Path:
         if candidate.exists():
             return candidate
     try:
+        # optional: only a colcon install has an ament index
         from ament_index_python.packages import get_package_share_directory
 
         return (

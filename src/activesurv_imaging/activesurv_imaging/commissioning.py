@@ -109,7 +109,7 @@ def mount_from_poses(
     Raises:
         CalibrationError: with fewer than 2 poses or no convergence.
     """
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # scipy.optimize is slow to load: fits only
 
     if len(poses) < 2:
         raise CalibrationError(f'{len(poses)} station poses; need >= 2 to fit a mount')
@@ -215,7 +215,7 @@ def refine(
     Raises:
         CalibrationError: with fewer than 3 stations or no convergence.
     """
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # scipy.optimize is slow to load: fits only
 
     seen = sum(1 for s in stations if s.sightings)
     if seen < 3:

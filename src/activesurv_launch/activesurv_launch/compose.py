@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import threading
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -33,7 +34,7 @@ NODE_CLASSES = {
 
 def build_node(spec: NodeSpec) -> Any:
     """Construct the node of ``spec`` in this process."""
-    from rclpy.parameter import Parameter
+    from rclpy.parameter import Parameter  # rclpy only in the composing process
 
     cls = getattr(importlib.import_module(spec.module), NODE_CLASSES[spec.module])
     args = ['--ros-args', '-r', f'__node:={spec.name}']
@@ -101,7 +102,6 @@ class Composition:
         return {}
 
     def stop(self) -> None:
-        import time
 
         for node in self.nodes:
             flush = getattr(node, 'flush', None)

@@ -10,6 +10,7 @@ exit, also after errors.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import shutil
 import subprocess
@@ -32,7 +33,6 @@ def _ip(*args: str, ns: str | None = None) -> subprocess.CompletedProcess[str]:
 
 
 def _setns(fd: int, what: str) -> None:
-    import ctypes
 
     libc = ctypes.CDLL(None, use_errno=True)
     if libc.setns(fd, 0x40000000) != 0:  # CLONE_NEWNET

@@ -48,7 +48,7 @@ def plot_scene(bag: Path, t: float, path: Path, title: str = '') -> Path:
     Raises:
         BagError: for an unreadable bag; KeyError if the bag has no frame tree.
     """
-    import matplotlib
+    import matplotlib  # heavy: only when a figure is drawn
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import struct
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ RUN_INFO_TOPIC = topics.RUN_INFO
 def interface_dir() -> Path:
     """The installed ``activesurv_interfaces`` message definitions."""
     try:
+        # optional: only a colcon install has an ament index
         from ament_index_python.packages import get_package_share_directory
 
         d = Path(get_package_share_directory('activesurv_interfaces')) / 'msg'
@@ -37,7 +39,6 @@ def interface_dir() -> Path:
             return d
     except (ImportError, LookupError, OSError):
         pass
-    import sys
 
     d = Path(sys.prefix) / 'share' / 'activesurv_interfaces' / 'msg'
     if d.is_dir():

@@ -212,6 +212,7 @@ def reindex(bag: Path) -> ReindexReport:
         BagError: if ``bag`` has no MCAP file, nothing can be recovered, or the new bag
             cannot be written (then the original is left where it was).
     """
+    # rosbags' writer and type system only when a bag is rebuilt
     from rosbags.rosbag2 import Writer
     from rosbags.rosbag2.enums import StoragePlugin
     from rosbags.rosbag2.storage_mcap import get_qos

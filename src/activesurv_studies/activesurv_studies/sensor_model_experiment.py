@@ -141,7 +141,7 @@ def fit_model(cells: Sequence[CellResult], max_bearing: float = math.radians(75.
 
 def plot_model(model: SensorModel, path: Path) -> None:
     """Response surfaces like the paper's Fig. 16 (all six variances; log scale)."""
-    import matplotlib
+    import matplotlib  # heavy: only when a figure is drawn
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

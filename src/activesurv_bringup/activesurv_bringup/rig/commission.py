@@ -132,6 +132,8 @@ class Commissioner:
         image_topics: dict[str, tuple[str, str]] | None = None,
         namespace: str = '',
     ) -> None:
+        # The Commissioner is the one ROS part of this module (offline commissioning, benches
+        # and studies import the rest without rclpy): its ROS imports are its own.
         from rclpy.node import Node
         from sensor_msgs.msg import CameraInfo, Image, JointState
 
@@ -191,7 +193,7 @@ class Commissioner:
         return float(self.node.get_clock().now().nanoseconds) * 1e-9
 
     def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
-        import rclpy
+        import rclpy  # the Commissioner's own (see __init__)
 
         deadline = time.monotonic() + timeout
         while not done():
@@ -237,6 +239,7 @@ class Commissioner:
         Raises:
             NodeDiedError: if no frame comes.
         """
+        # the Commissioner's own ROS imports (see __init__)
         from rclpy.serialization import deserialize_message
 
         from activesurv_common.ros.conversions import image_to_gray, sec_to_time
@@ -262,7 +265,7 @@ class Commissioner:
 
     def camera_model(self, camera_id: str, fallback: CameraModel) -> CameraModel:
         """What the camera's driver says of its optics (camera_info), else ``fallback``."""
-        from activesurv_common.ros.conversions import model_from_camera_info
+        from activesurv_common.ros.conversions import model_from_camera_info  # (see __init__)
 
         self.spin_until(lambda: camera_id in self.infos, 2.0)
         if camera_id not in self.infos:

@@ -151,10 +151,17 @@ def test_two_frames_lost_in_a_row_still_answer_with_a_wider_covariance() -> None
     expected = (0.002 * obs.frame_offset) ** 2 - (0.002 * near.frame_offset) ** 2
     assert grown == pytest.approx(expected, rel=0.05, abs=1e-12)
     assert obs.covariance[2, 2] == pytest.approx(near.covariance[2, 2], rel=1e-6)
-    # Three lost in a row is more than it reaches: an explicit failure.
+    # ... and so is the neighbour of three lost in a row (stalls of 80-90 ms seen in the lab);
+    # four lost is more than it reaches: an explicit failure.
+    three = core()
+    three.request(0, T_J, NORMAL, V)
+    feed(three, [s for s in stamps if abs(s - T_J) > 2.3 / RATE])
+    (late,) = three.poll(T_J + 0.2)
+    assert late.status is ObservationStatus.OK, late.reason
+    assert 2.3 / RATE < abs(late.frame_offset) <= 3.25 / RATE
     far = core()
     far.request(0, T_J, NORMAL, V)
-    feed(far, [s for s in stamps if abs(s - T_J) > 2.3 / RATE])
+    feed(far, [s for s in stamps if abs(s - T_J) > 3.3 / RATE])
     (none,) = far.poll(T_J + 2.0)
     assert none.status is ObservationStatus.NO_IMAGE
     assert 'nearest' in none.reason

@@ -142,7 +142,7 @@ def test_an_experiment_runs_on_the_lab(tmp_path: Path, wait_for_file: Callable[.
     )  # measured ~0.07 mm (docs/hardware.md); loose for a busy machine
     offsets = [v for d in rows for v in d['frame_offsets'].values()]
     assert offsets
-    assert all(abs(v) <= 2.25 / RATE + 1e-9 for v in offsets)  # free_reach: 2 lost in a row
+    assert all(abs(v) <= 3.25 / RATE + 1e-9 for v in offsets)  # free_reach: 3 lost in a row
     assert any(abs(v) > 1e-3 for v in offsets)  # free-running: not the demand instants
     logs = run / 'logs'
     assert 'grbl controller on' in (logs / 'xy_table_bridge.log').read_text()

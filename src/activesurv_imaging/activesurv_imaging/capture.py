@@ -8,9 +8,9 @@ Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes 
 itself. A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame
 nearest ``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It
 is within half a frame period unless that frame was dropped; then the nearest that came is
-taken, up to ``free_reach`` periods away (2.25: two frames in a row lost, as when the machine
-stalls, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is reported, the marker
-position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``),
+taken, up to ``free_reach`` periods away (3.25: three frames in a row lost, as when the
+machine stalls for ~100 ms, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is
+reported, the marker position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``),
 and its covariance grows by ``(velocity_std (t_j - t_frame))^2`` in x and y: what the
 prediction's velocity does not know of the motion. Every reading's covariance also carries the
 calibration's ``pointing_std`` (:func:`with_pointing`). A frame's stamp minus ``exposure_delay``
@@ -92,7 +92,7 @@ class ImagerConfig:
     frame_rate: float = 0.0
     exposure_delay: float = 0.0
     motion_correction: bool = True
-    free_reach: float = 2.25
+    free_reach: float = 3.25
     velocity_std: float = 0.002
     pointing_std: float = 1e-4
     obstacles: tuple[Obstacle, ...] = ()

@@ -60,7 +60,7 @@ PARAMS = (
     Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
-    Param('free_reach', 2.25, 'free-running: periods the taken frame may be off', minimum=0.5),
+    Param('free_reach', 3.25, 'free-running: periods the taken frame may be off', minimum=0.5),
     Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),
     Param('pointing_std', 1e-4, 'rad: calibration pointing error', minimum=0.0, maximum=0.1),
     Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),

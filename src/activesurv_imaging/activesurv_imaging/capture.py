@@ -4,18 +4,17 @@ A capture request names a demand instant ``t_j``. The answer uses the frame expo
 ``frame_tolerance`` of ``t_j`` and the camera pose at the frame's exposure, from the stage joint
 states interpolated there.
 
-Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j``
-itself. A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame
-nearest ``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It
-is within half a frame period unless that frame was dropped; then the nearest that came is
-taken, up to ``free_reach`` periods away (3.25: three frames in a row lost, as when the
-machine stalls for ~100 ms, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is
-reported, the marker position is moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``),
-and its covariance grows by ``(velocity_std (t_j - t_frame))^2`` in x and y: what the
-prediction's velocity does not know of the motion. Every reading's covariance also carries the
-calibration's ``pointing_std`` (:func:`with_pointing`). A frame's stamp minus ``exposure_delay``
-is its exposure instant (a driver that stamps frames on arrival stamps them after exposure and
-read-out).
+Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j`` itself.
+A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame nearest
+``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It is within
+half a frame period unless that frame was dropped; then the nearest that came is taken, up to
+``free_reach`` periods away (3.25: three frames in a row lost, as when the machine stalls for ~100
+ms, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is reported, the marker position is
+moved to ``t_j`` along the object's predicted velocity (``v (t_j - t_frame)``), and its covariance
+grows by ``(velocity_std (t_j - t_frame))^2`` in x and y: what the prediction's velocity does not
+know of the motion. Every reading's covariance also carries the calibration's ``pointing_std``
+(:func:`with_pointing`). A frame's stamp minus ``exposure_delay`` is its exposure instant (a driver
+that stamps frames on arrival stamps them after exposure and read-out).
 
 It waits (returns nothing yet) while the frame, the camera_info or a stage state at or after
 the frame's stamp is still to come, and gives up with an explicit failure ``frame_timeout``

@@ -46,6 +46,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.geometry import angle_between
 from activesurv_common.occlusion import Obstacle, plate_box, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
@@ -238,8 +239,7 @@ class DispatchPlanner:
         """Angle (rad) between the camera's optical axis at ``q`` and its line of sight to
         ``demand``'s marker."""
         centres, R = camera_frames(self.sensors[camera_id], np.asarray(q)[None, :])
-        p = R[0].T @ (demand.position - centres[0])
-        return float(math.atan2(math.hypot(p[0], p[1]), p[2]))
+        return angle_between(R[0][:, 2], demand.position - centres[0])
 
     def _blocked(self, camera_id: str, q: Array, demand: Demand) -> bool:
         """Whether an occluder stands between the camera at ``q`` and ``demand``'s marker."""

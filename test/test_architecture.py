@@ -184,7 +184,7 @@ def imported_depends(package: str) -> set[str]:
             top = name.split('.')[0]
             if top == package:
                 continue
-            if top.startswith('activesurv_') or top.endswith(('_msgs', '_interfaces')):
+            if top.startswith('activesurv_') or top.endswith(('_msgs', '_srvs', '_interfaces')):
                 out.add(top)
             elif top == 'rclpy':
                 out.add('rclpy')

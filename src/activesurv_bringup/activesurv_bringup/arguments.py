@@ -210,6 +210,7 @@ def check(args: argparse.Namespace) -> None:
     positive('--arrival-interval', _get(args, 'arrival_interval'))
     positive('--demand-interval', _get(args, 'demand_interval'))
     positive('--max-bag-duration', _get(args, 'max_bag_duration'), allow_zero=True)
+    positive('--timeout', _get(args, 'timeout'))
     port(_get(args, 'foxglove'))
     seed = _get(args, 'seed')
     if isinstance(seed, int) and seed < 0 and cmd != 'rig':

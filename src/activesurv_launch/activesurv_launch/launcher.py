@@ -22,6 +22,7 @@ from typing import IO, Any
 
 import yaml
 
+from activesurv_common.lifetime import PARENT_ENV, child_preexec
 from activesurv_launch.errors import NodeDiedError
 
 
@@ -146,12 +147,16 @@ class NodeProcess:
         self.command = [*prefix, *node_command(spec, params)]
         self.log_path = workdir / f'{spec.fqn.strip("/").replace("/", "__")}.log'
         self._log: IO[bytes] = open(self.log_path, 'ab')  # noqa: SIM115 - closed in stop()
+        parent = os.getpid()
+        # Its own session (a Ctrl-C in the terminal reaches the orchestrator only, which stops
+        # the nodes in order), and SIGTERM from the kernel if the orchestrator dies anyhow.
         self.process = subprocess.Popen(
             self.command,
             stdout=self._log,
             stderr=subprocess.STDOUT,
-            env=dict(env),
+            env={**env, PARENT_ENV: str(parent)},
             start_new_session=True,
+            preexec_fn=lambda: child_preexec(parent),  # only prctl and getppid: fork-safe
         )
         self.stopped_on_purpose = False
 

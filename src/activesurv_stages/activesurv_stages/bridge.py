@@ -9,6 +9,10 @@
   position (first connection, or after a controller reset) is homed only when asked
   (``home_on_connect``), and the last goal is then sent again; otherwise its goals are refused
   with a reason. Garbage lines are counted and skipped by the driver.
+* Stopping: :meth:`BridgeWorker.stop_all` sends the protocol's own stop (Zaber ``stop``, GRBL
+  feed hold + jog cancel) at once (the worker is woken, it does not wait for the next poll);
+  :meth:`BridgeWorker.set_estop` does the same and refuses every goal while the e-stop is
+  raised; :meth:`BridgeWorker.shutdown` stops the axes before it closes the port.
 """
 
 from __future__ import annotations
@@ -93,6 +97,9 @@ class BridgeWorker:
             'refused_unreferenced': 0,
         }
         self._stop = threading.Event()
+        self._wake = threading.Event()  # a stop request cuts the poll period short
+        self._estop = False
+        self._stops_sent = 0  # stop commands written to the controller
         self._thread: threading.Thread | None = None
         self._driver: StageDriver | None = None
         self._stop_request: set[str] = set()
@@ -104,11 +111,42 @@ class BridgeWorker:
         self._thread.start()
 
     def shutdown(self, timeout: float = 3.0) -> None:
+        """Stop the axes with the protocol's stop, then close the port (every way out of a
+        bridge comes here: shutdown, SIGINT, SIGTERM, a gone orchestrator)."""
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout)
         if self._driver is not None:
+            self._send_stops(set(self.axes))
             self._driver.close()
+
+    def stop_all(self) -> None:
+        """Drop every queued goal and stop every axis at once."""
+        with self._lock:
+            self._pending.clear()
+            self._stop_request.update(self.axes)
+        self._wake.set()
+
+    def set_estop(self, raised: bool) -> None:
+        """Raise (stop every axis, refuse goals) or lower the e-stop."""
+        with self._lock:
+            self._estop = raised
+        if raised:
+            self.stop_all()
+
+    @property
+    def estop(self) -> bool:
+        with self._lock:
+            return self._estop
+
+    def standing_still(self) -> bool:
+        """Whether the last poll found every axis idle (not moving)."""
+        with self._lock:
+            s = self._snap
+            return s.state is LinkState.READY and all(
+                s.statuses.get(j) in ('idle', 'fault') for j in self.axes
+            )
 
     def submit_goal(self, joint: str, position: float, velocity: float | None = None) -> Goal:
         """Queue a goal (the newest goal per joint wins).
@@ -120,6 +158,8 @@ class BridgeWorker:
         axis = self.axes.get(joint)
         if axis is None:
             raise StageError(f'unknown joint {joint!r}; this bridge drives {list(self.axes)}')
+        if self.estop:
+            raise StageError(f'{joint}: the e-stop is raised: goal refused')
         try:
             raw_p, raw_v = axis.checked_goal(position, velocity)
         except LimitError:
@@ -140,6 +180,11 @@ class BridgeWorker:
         """
         refused: list[str] = []
         checked: list[Goal] = []
+        if self.estop:
+            return [
+                f'{j}: the e-stop is raised: goal refused (activesurv stop --release)'
+                for j, _, _ in items
+            ]
         for joint, position, velocity in items:
             axis = self.axes.get(joint)
             if axis is None:
@@ -162,6 +207,7 @@ class BridgeWorker:
         with self._lock:
             self._stop_request.add(joint)
             self._pending.pop(joint, None)
+        self._wake.set()
 
     def snapshot(self) -> Snapshot:
         with self._lock:
@@ -173,7 +219,7 @@ class BridgeWorker:
                 dict(s.velocities),
                 dict(s.statuses),
                 s.last_error,
-                dict(self._counters),
+                {**self._counters, 'stops_sent': self._stops_sent},
             )
 
     # -- the thread -------------------------------------------------------------------------
@@ -204,7 +250,8 @@ class BridgeWorker:
                 self._error(f'unexpected {type(exc).__name__}: {exc}', 'comm_errors')
                 self._drop_link()
                 self._stop.wait(self.reconnect_period)
-            self._stop.wait(self.poll_period)
+            self._wake.wait(self.poll_period)
+            self._wake.clear()
 
     def _drop_link(self) -> None:
         if self._driver is not None:
@@ -237,9 +284,27 @@ class BridgeWorker:
             self._counters['garbage_lines'] = self._garbage_base + self._driver.garbage_lines
         return {j: by_axis[a.axis] for j, a in self.axes.items() if a.axis in by_axis}
 
+    def _send_stops(self, joints: set[str]) -> None:
+        """The protocol's stop for the axes of ``joints`` (one per controller axis); a failure
+        is recorded, the other axes are still stopped."""
+        if self._driver is None:
+            return
+        for axis in sorted({self.axes[j].axis for j in joints if j in self.axes}):
+            try:
+                self._driver.stop(axis)
+            except (StageError, OSError) as exc:
+                self._error(f'stop of axis {axis} failed: {exc}', 'comm_errors')
+                continue
+            with self._lock:
+                self._stops_sent += 1
+
     def _cycle(self) -> None:
         driver = self._driver
         assert driver is not None
+        with self._lock:  # stops first, before the poll's round trip
+            stops = set(self._stop_request)
+            self._stop_request.clear()
+        self._send_stops(stops)
         reports = self._reports()
         unhomed = [j for j, r in reports.items() if r.needs_home]
         if unhomed and self.home_on_connect:
@@ -259,12 +324,8 @@ class BridgeWorker:
             self._snap.stamp = now
             if self._snap.state is not LinkState.READY and not unhomed:
                 self._snap.state = LinkState.READY
-            stops = set(self._stop_request)
-            self._stop_request.clear()
-            goals = list(self._pending.values())
+            goals = [] if self._estop else list(self._pending.values())
             self._pending.clear()
-        for j in stops:
-            driver.stop(self.axes[j].axis)
         refused = [g for g in goals if g.joint in unhomed]
         together = getattr(driver, 'move_together', None)
         if together is not None and len(goals) - len(refused) > 1 and not refused:

@@ -229,6 +229,7 @@ class ZaberDriver:
         self._checked(d, f'move abs {round(position)}')
 
     def stop(self, axis: str) -> None:
+        """Zaber ASCII ``stop``: the device decelerates at its own rate and holds."""
         self._checked(self._device(axis), 'stop')
 
 
@@ -342,7 +343,9 @@ class GrblDriver:
         self.command(grbl.format_jog_together(targets, feed).decode())
 
     def stop(self, axis: str) -> None:
-        self._line().write(grbl.JOG_CANCEL)
+        """Feed hold, then jog cancel (real-time bytes, no reply): GRBL decelerates every axis
+        and flushes the jogs it holds. GRBL has one planner, so this stops the whole machine."""
+        self._line().write(grbl.FEED_HOLD + grbl.JOG_CANCEL)
 
 
 DriverFactory = Callable[..., Any]

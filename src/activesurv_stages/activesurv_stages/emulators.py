@@ -441,8 +441,9 @@ class GrblEmulator(EmulatorBase):
                 with self._state_lock:
                     self.send(self._status(now))
             elif c == grbl.FEED_HOLD:
+                # GRBL 1.1: a feed hold during a jog cancels it (back to Idle); this emulator
+                # runs jogs only, so a hold is never left pending.
                 with self._state_lock:
-                    self._held = True
                     for s in self.sims.values():
                         s.stop(now)
             elif c == grbl.CYCLE_START:

@@ -1,8 +1,13 @@
 """The ``stage_bridge`` node: one real motion controller on a serial port.
 
-Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal).
+Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); estop (std_msgs/Bool,
+    reliable + transient local: the rig's e-stop, ``<namespace>/estop``; while it is true every
+    goal is refused).
 Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState, SI) at the poll rate,
-    /diagnostics (link state, counters, last error).
+    /diagnostics (link state, counters, last error, ``estop`` and ``standing_still``).
+Services: ~/stop (std_srvs/Trigger): stop every axis now (queued goals are dropped).
+Every way out (shutdown, SIGINT, SIGTERM, SIGHUP, the orchestrator gone) stops the axes with the
+protocol's own stop before the port is closed.
 Parameters: config_file (controller YAML, see ``config/zaber_example.yaml``), camera_id,
     port (overrides the file), home_on_connect, reconnect_period.
 The serial I/O runs in :class:`activesurv_stages.bridge.BridgeWorker`'s thread; the node never
@@ -17,6 +22,8 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool
+from std_srvs.srv import Trigger
 
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.node import run_node
@@ -64,8 +71,11 @@ class StageBridgeNode(Node):
         )
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
+        self.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.ESTOP)
+        self.create_service(Trigger, '~/stop', self._on_stop)
         self.create_timer(1.0 / cfg.poll_rate, self._publish)
         self.create_timer(1.0, self._publish_diagnostics)
+        self._still_told = True  # whether standing still under the e-stop was published
         self._last_stamp = 0.0
         self._last_state = LinkState.DISCONNECTED
         self.refusals = 0
@@ -78,8 +88,30 @@ class StageBridgeNode(Node):
             self.refusals += 1
             self.get_logger().warning(f'goal refused, nothing sent: {reason}')
 
+    def _on_estop(self, msg: Bool) -> None:
+        raised = bool(msg.data)
+        if raised == self.worker.estop:
+            return
+        self.worker.set_estop(raised)
+        if raised:
+            self.get_logger().error('e-stop raised: axes stopped, every goal refused')
+            self._still_told = False
+        else:
+            self.get_logger().warning('e-stop released: goals accepted again')
+        self._publish_diagnostics()
+
+    def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        self.worker.stop_all()
+        self.get_logger().warning('stop requested (~/stop): axes stopped, queued goals dropped')
+        response.success = True
+        response.message = f'stop sent to {", ".join(self.joints)}'
+        return response
+
     def _publish(self) -> None:
         snap = self.worker.snapshot()
+        if not self._still_told and self.worker.standing_still():
+            self._still_told = True
+            self._publish_diagnostics()  # what activesurv stop waits for
         if snap.state is not self._last_state:
             text = f'controller {self._last_state.value} -> {snap.state.value}' + (
                 f' ({snap.last_error})' if snap.last_error else ''
@@ -115,12 +147,21 @@ class StageBridgeNode(Node):
         }[snap.state]
         if any(v == 'fault' for v in snap.statuses.values()):
             s.level = DiagnosticStatus.ERROR
+        estop = self.worker.estop
         s.message = snap.state.value + (f': {snap.last_error}' if snap.last_error else '')
+        if estop:
+            s.level = DiagnosticStatus.ERROR
+            s.message = 'e-stop raised: goals refused; ' + s.message
         s.values = [KeyValue(key=k, value=str(v)) for k, v in sorted(snap.counters.items())]
         s.values += [
             KeyValue(key=f'status/{j}', value=v) for j, v in sorted(snap.statuses.items())
         ]
         s.values.append(KeyValue(key='refused_goals', value=str(self.refusals)))
+        s.values.append(KeyValue(key='estop', value=str(estop).lower()))
+        s.values.append(
+            KeyValue(key='standing_still', value=str(self.worker.standing_still()).lower())
+        )
+        s.values.append(KeyValue(key='namespace', value=self.get_namespace()))
         arr = DiagnosticArray(status=[s])
         arr.header.stamp = self.get_clock().now().to_msg()
         self._diag.publish(arr)

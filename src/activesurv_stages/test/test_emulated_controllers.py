@@ -269,3 +269,73 @@ def test_grbl_moves_the_axes_of_one_goal_in_one_command(grbl_emu: GrblEmulator) 
         assert any(b'X' in j and b'A' in j for j in jogs), jogs  # one command, both axes
     finally:
         w.shutdown()
+
+
+def _still_at(driver: ZaberDriver | GrblDriver, axis: str) -> float:
+    """Connect a fresh driver and return where ``axis`` stands, checking that it stands still."""
+    driver.connect()
+    try:
+        deadline = time.monotonic() + 2.0  # it may still be decelerating
+        while (first := {r.axis: r for r in driver.poll()}[axis]).status != 'idle':
+            assert time.monotonic() < deadline, first
+            time.sleep(0.02)
+        time.sleep(0.3)
+        second = {r.axis: r for r in driver.poll()}[axis]
+    finally:
+        driver.close()
+    assert second.status == 'idle', second
+    assert abs(second.position - first.position) < 1e-9, (first, second)
+    return float(second.position)
+
+
+@pytest.mark.parametrize('protocol', ['zaber', 'grbl'])
+@pytest.mark.parametrize('way', ['stop_all', 'estop', 'shutdown'])
+def test_every_way_out_stops_the_axes(
+    protocol: str, way: str, zaber_emu: ZaberEmulator, grbl_emu: GrblEmulator
+) -> None:
+    """~/stop, the e-stop and the bridge's shutdown (SIGINT, SIGTERM, a gone orchestrator) send
+    the protocol's own stop: the axis stands still well short of a far goal."""
+    emu = zaber_emu if protocol == 'zaber' else grbl_emu
+    axes = ZABER_AXES if protocol == 'zaber' else GRBL_AXES
+    driver_cls = ZaberDriver if protocol == 'zaber' else GrblDriver
+    joint, axis = axes[0].joint, axes[0]
+    w = BridgeWorker(
+        lambda: driver_cls(str(emu.link), timeout=0.5),
+        axes,
+        poll_rate=25,
+        home_on_connect=True,
+    )
+    w.start()
+    stopped_in = 0.0
+    try:
+        _wait(w, lambda s: s.state is LinkState.READY)
+        w.submit_goal(joint, 0.14, 0.02)  # 29 cm at 2 cm/s: 14 s of travel
+        _wait(w, lambda s: s.statuses.get(joint) == 'busy' and s.positions[joint] > -0.145)
+        t0 = time.monotonic()
+        if way == 'stop_all':
+            w.stop_all()
+        elif way == 'estop':
+            w.set_estop(True)
+        else:
+            w.shutdown()
+        if way != 'shutdown':
+            _wait(w, lambda s: s.statuses.get(joint) == 'idle', timeout=5.0)
+            stopped_in = time.monotonic() - t0
+            assert w.standing_still()
+            assert w.snapshot().counters['stops_sent'] >= 1
+        if way == 'estop':
+            with pytest.raises(StageError, match='e-stop'):
+                w.submit_goal(joint, 0.0)
+            assert w.submit_goals([(joint, 0.0, None)])[0].endswith(
+                'goal refused (activesurv stop --release)'
+            )
+            w.set_estop(False)
+            w.submit_goal(joint, -0.14, 0.05)  # released: goals accepted again
+            _wait(w, _at(joint, -0.14, tol=1e-4))
+    finally:
+        w.shutdown()
+    if way == 'shutdown':
+        stopped = axis.to_si(_still_at(driver_cls(str(emu.link), timeout=0.5), axis.axis))
+        assert stopped < 0.0, stopped  # far short of the goal: the stop was sent on the way out
+    else:
+        assert stopped_in < 1.0, stopped_in  # a generous bound: the figure is in make bench

@@ -249,3 +249,98 @@ def test_stage_bridge_node_against_emulator(
         emu.close()
     # Every goal moved the axis (the round-trip time itself is measured by bench_stages.py).
     assert len(round_trips) == 5
+
+
+def test_stage_bridge_stop_service_and_estop(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """``~/stop`` stops a moving axis; the latched e-stop (raised before or while the bridge
+    runs) stops it and refuses every goal, with the e-stop in the diagnostics; lowering it lets
+    goals through again."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Bool
+    from std_srvs.srv import Trigger
+
+    from activesurv_interfaces.msg import StageGoal
+
+    emu = ZaberEmulator(tmp_path / 'ttyZ', [ZaberDeviceSpec(1, (0, 300_000), 300_000, 3e6)])
+    cfg = {
+        'controller': {'protocol': 'zaber', 'port': str(tmp_path / 'ttyZ'), 'poll_rate': 50.0},
+        'axes': [
+            {
+                'joint': 'cam1_x',
+                'axis': '1',
+                'kind': 'linear',
+                'si_per_unit': 1e-6,
+                'offset': -0.15,
+                'min': -0.15,
+                'max': 0.15,
+                'max_velocity': 0.05,
+                'max_acceleration': 0.5,
+            }
+        ],
+    }
+    (tmp_path / 'zaber.yaml').write_text(yaml.safe_dump(cfg))
+    bridge = StageBridgeNode(
+        parameter_overrides=[
+            Parameter('config_file', value=str(tmp_path / 'zaber.yaml')),
+            Parameter('home_on_connect', value=True),
+        ]
+    )
+    peer = rclpy_context.create_node('bridge_stop_peer')
+    stream: list[tuple[float, float, float]] = []
+    diags: list[dict[str, str]] = []
+    peer.create_subscription(
+        JointState,
+        topics.joint_states('cam1'),
+        lambda m: stream.append((time.monotonic(), m.position[0], m.velocity[0])),
+        qos.STATE,
+    )
+    peer.create_subscription(
+        DiagnosticArray,
+        topics.DIAGNOSTICS,
+        lambda m: diags.extend({kv.key: kv.value for kv in s.values} for s in m.status),
+        qos.DIAGNOSTICS,
+    )
+    goals = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+    estop = peer.create_publisher(Bool, topics.ESTOP, qos.ESTOP)
+    client = peer.create_client(Trigger, '/stage_bridge/stop')
+    try:
+        assert spin_until([bridge, peer], lambda: len(stream) > 3, timeout=15.0)
+        goals.publish(_goal(['cam1_x'], [0.14], [0.02]))
+        assert spin_until([bridge, peer], lambda: stream[-1][1] > -0.145, timeout=10.0)
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until([bridge, peer], future.done, timeout=5.0)
+        assert future.result().success
+        n = len(stream)
+        assert spin_until(
+            [bridge, peer],
+            lambda: len(stream) > n + 5 and abs(stream[-1][1] - stream[-5][1]) < 1e-9,
+            timeout=5.0,
+        )
+        assert stream[-1][1] < 0.0  # far short of the goal
+
+        # The e-stop: goals refused, nothing written to the port, the diagnostics say so.
+        estop.publish(Bool(data=True))
+        assert spin_until([bridge, peer], lambda: bridge.worker.estop, timeout=5.0)
+        before = len(emu.received)
+        goals.publish(_goal(['cam1_x'], [0.1]))
+        assert spin_until([bridge, peer], lambda: bridge.refusals >= 1, timeout=5.0)
+        assert not any(b'move abs' in line for line in emu.received[before:])
+        assert spin_until(
+            [bridge, peer],
+            lambda: any(
+                d.get('estop') == 'true' and d.get('standing_still') == 'true' for d in diags
+            ),
+            timeout=5.0,
+        )
+        estop.publish(Bool(data=False))
+        assert spin_until([bridge, peer], lambda: not bridge.worker.estop, timeout=5.0)
+        goals.publish(_goal(['cam1_x'], [-0.14]))
+        assert spin_until([bridge, peer], lambda: abs(stream[-1][1] + 0.14) < 2e-6, timeout=10.0)
+    finally:
+        bridge.destroy_node()
+        peer.destroy_node()
+        emu.close()

@@ -27,6 +27,7 @@ from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
+from activesurv_common.lifetime import StopRequested, StopSignals
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.runner import NodeRunner
@@ -546,64 +547,84 @@ def _run(
             else None
         )
         launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
-    try:
-        launcher.run(specs[:-1])
-        deadline = time.monotonic() + startup_timeout
-        while monitor.missing_nodes():
-            launcher.check()
-            if time.monotonic() > deadline:
-                raise NodeDiedError(
-                    f'nodes did not come up in {startup_timeout:.0f} s: '
-                    f'{sorted(monitor.missing_nodes())}'
-                )
-            monitor.spin(0.2)
-        monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
-        if before_start is not None:
-            before_start(monitor, progress)
-        n_nodes = sum(len(s.members) or 1 for s in specs)
-        last = 'the xy table and simulated time' if opts.time_origin is None else specs[-1].name
-        progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
-        launcher.run(specs[-1:])
-        cpu0, wall0 = _cpu(launcher), time.monotonic()
-        wall_limit = time.monotonic() + until.wall_limit
-        samples: list[dict[str, Any]] = []
-        next_sample = wall0
-        while not until.done(monitor):
-            if time.monotonic() >= next_sample and not opts.compose:
-                next_sample += RESOURCE_PERIOD
-                samples.append(_resources(launcher, wall0, monitor.sim_time))
-            if kills:  # RunOptions refuses kills with compose: these are processes
-                assert isinstance(launcher, Launcher)
-                _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
-            launcher.check()
-            monitor.spin(0.25)
-            line = until.report(monitor)
-            if line:
-                progress(line)
-            if time.monotonic() > wall_limit:
-                raise NodeDiedError(
-                    f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
-                    f'after {until.wall_limit:.0f} s of wall time)'
-                )
-        # Stop only when the recorder has every request, observation and estimate heard here
-        # (a restarted node is matched late; a lost datagram holds a reliable reader's later
-        # messages until the writer's next heartbeat repairs it).
-        deadline = time.monotonic() + 20.0
-        while missing := monitor.unrecorded():
-            if time.monotonic() > deadline:
-                progress(f'the recorder is missing {missing} after 20 s; stopping anyway')
-                break
-            monitor.spin(0.25)
-        monitor.spin(0.5)  # the recorder gets the last messages
-        _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
-        if samples:
-            (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
-    finally:
-        monitor.close()
-        # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
-        launcher.stop()
-        if owns_rclpy:
-            rclpy.try_shutdown()
+    # SIGINT, SIGTERM and SIGHUP stop the run cleanly (StopRequested once the bag is closed).
+    with StopSignals() as stop:
+        try:
+            launcher.run(specs[:-1])
+            deadline = time.monotonic() + startup_timeout
+            while monitor.missing_nodes():
+                if stop.requested:
+                    raise StopRequested(stop.requested)
+                launcher.check()
+                if time.monotonic() > deadline:
+                    raise NodeDiedError(
+                        f'nodes did not come up in {startup_timeout:.0f} s: '
+                        f'{sorted(monitor.missing_nodes())}'
+                    )
+                monitor.spin(0.2)
+            monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
+            if stop.requested:
+                raise StopRequested(stop.requested)
+            if before_start is not None:
+                before_start(monitor, progress)
+            n_nodes = sum(len(s.members) or 1 for s in specs)
+            last = (
+                'the xy table and simulated time' if opts.time_origin is None else specs[-1].name
+            )
+            progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
+            launcher.run(specs[-1:])
+            cpu0, wall0 = _cpu(launcher), time.monotonic()
+            wall_limit = time.monotonic() + until.wall_limit
+            samples: list[dict[str, Any]] = []
+            next_sample = wall0
+            while not until.done(monitor):
+                if stop.requested:
+                    progress(
+                        f'{stop.requested} at simulated time {monitor.sim_time:.1f} s: stopping '
+                        '(open demands are answered, the bag is closed)'
+                    )
+                    break
+                if time.monotonic() >= next_sample and not opts.compose:
+                    next_sample += RESOURCE_PERIOD
+                    samples.append(_resources(launcher, wall0, monitor.sim_time))
+                if kills:  # RunOptions refuses kills with compose: these are processes
+                    assert isinstance(launcher, Launcher)
+                    _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
+                launcher.check()
+                monitor.spin(0.25)
+                line = until.report(monitor)
+                if line:
+                    progress(line)
+                if time.monotonic() > wall_limit:
+                    raise NodeDiedError(
+                        f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
+                        f'after {until.wall_limit:.0f} s of wall time)'
+                    )
+            # Stop only when the recorder has every request, observation and estimate heard here
+            # (a restarted node is matched late; a lost datagram holds a reliable reader's later
+            # messages until the writer's next heartbeat repairs it).
+            drain = 3.0 if stop.requested else 20.0  # a signalled run exits within 10 s
+            deadline = time.monotonic() + drain
+            while missing := monitor.unrecorded():
+                if time.monotonic() > deadline:
+                    progress(
+                        f'the recorder is missing {missing} after {drain:.0f} s; stopping anyway'
+                    )
+                    break
+                monitor.spin(0.25)
+            monitor.spin(0.5)  # the recorder gets the last messages
+            _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
+            if samples:
+                (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
+        finally:
+            monitor.close()
+            # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
+            # A second signal while stopping is a user in a hurry: the launcher hurries.
+            launcher.stop()
+            if owns_rclpy:
+                rclpy.try_shutdown()
+    if stop.requested:
+        raise StopRequested(stop.requested)
     return bag
 
 

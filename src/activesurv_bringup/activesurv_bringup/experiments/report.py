@@ -55,8 +55,9 @@ TOPICS = {
 }
 
 
-def evaluate_bag(bag: Path) -> dict[str, Any]:
-    """The results document of one recorded run.
+def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
+    """The results document of one recorded run (``partial``: stopped early by a signal, so
+    the demands its truth covers).
 
     Raises:
         BagError: for a missing, damaged or foreign bag.
@@ -92,14 +93,17 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
         elif m.topic == '/target_estimate':
             estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
-    if len(truth) == 0 and not truthless:
+    if len(truth) == 0 and not truthless and not partial:
         raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
     model = SensorModel.load()
     obstacles = run_obstacles(info)
     records = []
+    last_truth = truth.latest_time
     for j, t_run in enumerate(times):
         tj = origin + t_run
         s = truth.at(tj, hold=0.5) if not truthless else np.full(6, np.nan)
+        if s is None and (partial or (last_truth is not None and tj > last_truth + 0.5)):
+            break  # the run was stopped (a signal) before this instant: the demands so far
         if s is None:
             raise BagError(f'no ground truth near demand {j} at {t_run:.2f} s')
         rec = demand_record(
@@ -130,6 +134,8 @@ def evaluate_bag(bag: Path) -> dict[str, Any]:
             # Where the truth comes from: the simulator, or a real table's controller.
             'truth': info.get('truth') if info.get('mode') == 'hardware' else 'simulator',
             **({'hardware': info['hardware']} if 'hardware' in info else {}),
+            # A run stopped by a signal: how many demands it was to answer.
+            **({'demands_planned': len(times)} if len(records) < len(times) else {}),
         },
         tracked.metrics() if not truthless else None,
     )
@@ -155,16 +161,19 @@ def find_runs(path: Path) -> list[Path]:
     )
 
 
-def load_run(run: Path, refresh: bool = True, write: bool = True) -> dict[str, Any]:
+def load_run(
+    run: Path, refresh: bool = True, write: bool = True, partial: bool = False
+) -> dict[str, Any]:
     """The results of a run: from its bag (writing results.json unless ``write`` is False) or,
-    without ``refresh`` and with a results.json, from that."""
+    without ``refresh`` and with a results.json, from that. ``partial``: the run was stopped
+    early (a signal); the demands whose instant its truth covers, none if it has none."""
     bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
     have = (run / 'results.json').is_file()
     if bag.is_dir() and (refresh or not have):
         if run_info(bag).get('mode') == 'surveil':
             doc = evaluate_surveil(bag)
         else:
-            doc = evaluate_bag(bag)
+            doc = evaluate_bag(bag, partial)
         if write:
             out = run.parent if bag == run else run
             write_results(out / 'results.json', doc)

@@ -14,12 +14,10 @@ closes the bag; then ``results.json`` is written from the bag:
 from __future__ import annotations
 
 import json
-import signal
 import statistics
 import time
 from dataclasses import replace
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -45,6 +43,7 @@ from activesurv_bringup.experiments.session_options import (  # (their earlier p
 from activesurv_bringup.experiments.session_options import FIRST_ENTRY as FIRST_ENTRY
 from activesurv_bringup.experiments.session_options import SurveilOptions as SurveilOptions
 from activesurv_bringup.experiments.session_options import parse_demand_at as parse_demand_at
+from activesurv_common.lifetime import StopRequested
 from activesurv_common.occlusion import obstacles_to_list, plate_box
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
@@ -159,26 +158,6 @@ def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> lis
     return out
 
 
-class _Stop:
-    """SIGINT/SIGTERM end the session cleanly instead of killing the orchestrator."""
-
-    def __init__(self) -> None:
-        self.requested = False
-        self._old: dict[int, Any] = {}
-
-    def __enter__(self) -> _Stop:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, self._on_signal)
-        return self
-
-    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
-        self.requested = True
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, handler in self._old.items():
-            signal.signal(sig, handler)
-
-
 def run_surveil(
     out_dir: Path,
     s: SurveilOptions,
@@ -212,28 +191,21 @@ def run_surveil(
     limit = (s.duration or 7 * 24 * 3600.0) / max(opts.rtf, 1e-3) * 1.5 + 120.0
     last = [-1e9]
 
-    with _Stop() as stop:
+    def done(mon: Any) -> bool:
+        return s.duration is not None and mon.sim_time >= s.duration
 
-        def done(mon: Any) -> bool:
-            if stop.requested:
-                progress(
-                    f'signal received at {clock(mon)} time {mon.sim_time:.1f} s: stopping (open '
-                    'demands are answered, the bag is closed)'
-                )
-                return True
-            return s.duration is not None and mon.sim_time >= s.duration
+    def report(mon: Any) -> str | None:
+        if mon.sim_time - last[0] < 10.0:
+            return None
+        last[0] = mon.sim_time
+        ok = sum(1 for e in mon.estimates.values() if int(e.status) == 0)
+        end = f' of {s.duration:.0f} s' if s.duration else ''
+        return (
+            f'{clock(mon)} time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
+            f'answered, {ok} ok'
+        )
 
-        def report(mon: Any) -> str | None:
-            if mon.sim_time - last[0] < 10.0:
-                return None
-            last[0] = mon.sim_time
-            ok = sum(1 for e in mon.estimates.values() if int(e.status) == 0)
-            end = f' of {s.duration:.0f} s' if s.duration else ''
-            return (
-                f'{clock(mon)} time {mon.sim_time:.0f} s{end}: {len(mon.estimates)} demands '
-                f'answered, {ok} ok'
-            )
-
+    try:
         run_graph(
             exp,
             out_dir,
@@ -243,6 +215,11 @@ def run_surveil(
             specs=specs,
             before_start=before_start,
         )
+    except StopRequested:
+        # A session is open-ended: SIGINT, SIGTERM or SIGHUP is how it ends (the graph has
+        # answered its open demands and closed the bag).
+        if not (bag / 'metadata.yaml').is_file():
+            raise
     doc = evaluate_surveil(bag)
     (out_dir / 'results.json').write_text(json.dumps(doc, indent=2) + '\n')
     progress(f'report: {write_surveil_report(doc, out_dir)}')

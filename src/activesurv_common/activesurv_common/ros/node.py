@@ -7,7 +7,8 @@
 
 A node that cannot start (a bad parameter, a missing or malformed configuration file) prints
 ``<name>: error: <reason>`` on stderr and the process exits with status 1, without a traceback.
-SIGINT and SIGTERM stop the spin; ``on_stop`` then runs while the node still has its publishers
+SIGINT, SIGTERM and SIGHUP stop the spin, and so does the death of the orchestrator that
+started the node; ``on_stop`` then runs while the node still has its publishers
 (fusion answers its open demands, the recorder closes its bag), and the context ends.
 
 Nodes spin on rclpy's ``EventsExecutor`` (C++, no wait set rebuilt on every wake-up: the
@@ -31,6 +32,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from activesurv_common.errors import CommonError
+from activesurv_common.lifetime import PARENT_ENV, STOP_SIGNALS, orphaned
 
 N = TypeVar('N', bound=Node)
 
@@ -67,21 +69,42 @@ def make_executor() -> Executor:
     return SingleThreadedExecutor()
 
 
+ORPHAN_GRACE = 3.0
+"""s a node whose orchestrator is gone has to stop (its on-stop work included) before the
+kernel ends it: nobody else is left to escalate."""
+
+
 def spin_until_signal(executor: Executor) -> None:
-    """Spin until SIGINT, SIGTERM or an external shutdown of the context."""
+    """Spin until SIGINT, SIGTERM, SIGHUP, an external shutdown of the context, or the death
+    of the process that started this one (:func:`~activesurv_common.lifetime.orphaned`).
+
+    A node left without its orchestrator (it was SIGKILLed) stops as on SIGTERM, and an alarm
+    ends the process :data:`ORPHAN_GRACE` seconds later whatever its on-stop work is doing.
+    """
     stopping = False
 
     def _stop(signum: int, frame: FrameType | None) -> None:
         nonlocal stopping
         stopping = True
+        if orphaned():
+            _arm_orphan_alarm()
 
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, _stop)
+    watched = PARENT_ENV in os.environ
     try:
         while rclpy.ok() and not stopping:
             executor.spin_once(timeout_sec=0.1)
+            if watched and orphaned():
+                stopping = True
+                _arm_orphan_alarm()
     except ExternalShutdownException:
         pass
+
+
+def _arm_orphan_alarm() -> None:
+    signal.signal(signal.SIGALRM, signal.SIG_DFL)  # the default action ends the process
+    signal.alarm(max(1, round(ORPHAN_GRACE)))
 
 
 def run_node(

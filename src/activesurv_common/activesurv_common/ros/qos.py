@@ -37,6 +37,7 @@ STATE = _profile(20)
 # Blackboard state: the newest, kept for late joiners.
 LATCHED = _profile(1, latched=True)
 GOAL = LATCHED
+ESTOP = LATCHED  # a bridge started after the e-stop was raised still sees it
 # Per-demand events (capture requests, observations) as subscribed by the imagers.
 EVENTS = _profile(50)
 # Per-demand events on the blackboard (publishers keep the last 50 for late joiners).

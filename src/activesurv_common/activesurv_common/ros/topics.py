@@ -29,6 +29,7 @@ TARGET_ESTIMATE = 'target_estimate'
 TARGET_POSE = 'target_pose'
 # Infrastructure
 DIAGNOSTICS = '/diagnostics'
+ESTOP = 'estop'  # the rig's e-stop (std_msgs/Bool, latched): <namespace>/estop
 TF = '/tf'
 TF_STATIC = '/tf_static'
 RECORDER_STATUS = '/activesurv/recorder_status'

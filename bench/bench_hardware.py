@@ -68,7 +68,7 @@ def _stop(lab: subprocess.Popen[str]) -> None:
 
 def _experiment(hw: Path, out: Path, *extra: str) -> dict[str, Any]:
     r = subprocess.run(
-        [ACTIVESURV, 'experiment', '--hardware', str(hw), '--calibration', 'nominal', '--home',
+        [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', 'nominal', '--home',
          '--set', 'A', '--system', 'fast', '--out', str(out), *extra],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
@@ -109,7 +109,7 @@ def run() -> dict[str, Any]:
                 raw = _figures(_experiment(hw, d / 'A_fast_raw', '--no-motion-correction'))
             started = time.monotonic()
             r = subprocess.run(
-                [ACTIVESURV, 'surveil', '--hardware', str(hw), '--calibration', 'nominal',
+                [ACTIVESURV, 'surveil', '--hardware', str(hw), '--yes', '--calibration', 'nominal',
                  '--out', str(d / 'session'), '--duration', str(SURVEIL_S), '--home'],
                 capture_output=True, text=True, timeout=SURVEIL_S * 2 + 300,
             )  # fmt: skip

@@ -83,7 +83,7 @@ def test_the_hardware_files_layout_is_the_rig_as_designed(tmp_path: Path) -> Non
         (lambda d: d['cameras']['cam1'].pop('stages'), 'stages'),
         (lambda d: d['cameras']['cam2'].update(source={}), 'source'),
         (lambda d: d['geometry']['table'].update(x=[0.5, 0.0]), 'min < max'),
-        (lambda d: d['cameras']['cam3']['stages']['axes'][0].update(min='x'), 'axis'),
+        (lambda d: d['cameras']['cam3']['stages']['axes'][0].update(min='x'), 'axes[0].min'),
     ],
 )
 def test_a_bad_hardware_file_is_refused_with_its_place(
@@ -120,7 +120,7 @@ def test_an_experiment_runs_on_the_lab(tmp_path: Path, wait_for_file: Callable[.
     try:
         assert wait_for_file(hw, lab)
         r = subprocess.run(
-            [ACTIVESURV, 'experiment', '--hardware', str(hw), '--calibration', 'nominal',
+            [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', 'nominal',
              '--home', '--set', 'A', '--system', 'fast', '--out', str(run)],
             capture_output=True, text=True, timeout=600,
         )  # fmt: skip

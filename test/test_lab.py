@@ -35,7 +35,7 @@ def test_live_commissioning_through_serial_controllers(
     try:
         assert wait_for_file(hw, lab), 'the lab wrote no hardware file'
         r = subprocess.run(
-            [ACTIVESURV, 'commission', '--live', '--hardware', str(hw), '--out', str(cal),
+            [ACTIVESURV, 'commission', '--live', '--yes', '--hardware', str(hw), '--out', str(cal),
              '--stations', '4'],  # a quick check: 4 of cam1's 16 stations
             capture_output=True, text=True, timeout=900,
         )  # fmt: skip

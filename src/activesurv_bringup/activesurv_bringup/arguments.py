@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,11 +19,10 @@ from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import parse_fault, parse_kill
 from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
 from activesurv_bringup.files import dds_profile_path
+from activesurv_bringup.rig.hardware import read
 from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
 from activesurv_common.calibration import load_calibration
 from activesurv_common.errors import CalibrationError
-from activesurv_hardware.errors import HardwareFileError
-from activesurv_hardware.hardware_file import load_hardware
 from activesurv_sim.rig import RigError, load_rig
 from activesurv_sim.xytable import from_csv
 from activesurv_stages.errors import ConfigError as StageConfigError
@@ -149,12 +149,16 @@ def hardware(args: argparse.Namespace) -> None:
         if _get(args, 'home'):
             raise ConfigError('--home needs --hardware (a simulated stage is always referenced)')
         return
-    try:
-        load_hardware(path)
-    except HardwareFileError as exc:
-        raise ConfigError(f'--hardware {path}: {exc}') from exc
+    # A run checks the ports too; 'activesurv stop' must work whatever the ports say.
+    run = args.command in ('experiment', 'surveil', 'commission')
+    read(path, ports=run, layout=args.command in ('experiment', 'surveil'))
     if args.command == 'commission' and not args.live:
         raise ConfigError('--hardware commissions the real rig: add --live')
+    if run and not _get(args, 'yes') and not sys.stdin.isatty():
+        raise ConfigError(
+            f'activesurv {args.command} --hardware moves the stages: with no terminal to ask '
+            'at, confirm with --yes'
+        )
     clash = [
         flag
         for flag, bad in (

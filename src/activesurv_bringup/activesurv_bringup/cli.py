@@ -46,6 +46,7 @@ from activesurv_bringup import __version__, arguments
 from activesurv_bringup.errors import USER_ERRORS, ConfigError
 from activesurv_bringup.experiments.options import PROCESSES, RunOptions
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
+from activesurv_bringup.rig.hardware import HardwareCheckError
 from activesurv_bringup.rig.hardware import add_arguments as add_hardware_arguments
 from activesurv_bringup.rig.hardware import run as run_hardware_command
 from activesurv_bringup.rig.rigs import add_arguments as add_rig_arguments
@@ -265,6 +266,13 @@ def _build_parser() -> argparse.ArgumentParser:
         'drivers are started, its camera topics listened to',
     )
     com.add_argument(
+        '--home',
+        action='store_true',
+        help="with --hardware: home unreferenced axes when the bridges connect (or the file's "
+        'home: true); never otherwise',
+    )
+    _add_yes(com)
+    com.add_argument(
         '--stations',
         type=int,
         default=None,
@@ -368,7 +376,18 @@ def _add_hardware(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--home',
         action='store_true',
-        help='with --hardware: home unreferenced axes when the bridges connect',
+        help="with --hardware: home unreferenced axes when the bridges connect (or the file's "
+        'home: true); never otherwise',
+    )
+    _add_yes(parser)
+
+
+def _add_yes(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        '--yes',
+        action='store_true',
+        help='with --hardware: move without asking (the plan is listed and a question asked '
+        'first otherwise; without a terminal a hardware run needs --yes)',
     )
 
 
@@ -470,7 +489,7 @@ def experiment(
         exp = exp.with_predictor(predictor)
         started = time.monotonic()
         with results_on_stop(out):
-            run_hardware(exp, hw, out, opts, say, home, motion_correction)
+            run_hardware(exp, hw, out, opts, say, home or hw.home, motion_correction)
         result = load_run(out)
         say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
         return result
@@ -614,6 +633,7 @@ def surveil(
     def say(text: str) -> None:
         print(f'  surveil: {text}', flush=True)
 
+    home = home or (hardware is not None and hardware.home)
     doc = run_surveil(out, session, options, say, hardware, home)
     s = doc['summary']
     lat = s['latency_median_ms']
@@ -659,6 +679,7 @@ def commission(
     cameras: str | None = None,
     hardware: Path | None = None,
     stations: int | None = None,
+    home: bool = False,
 ) -> dict[str, Any]:
     """``activesurv commission``: calibrate a simulated rig (``rig``) or the live one (with
     ``hardware``, the rig that hardware file describes)."""
@@ -675,7 +696,7 @@ def commission(
     def say(text: str) -> None:
         print(f'  commission: {text}', flush=True)
 
-    doc = run_commission(out, the_rig, chosen, say, hardware=hw, stations=stations)
+    doc = run_commission(out, the_rig, chosen, say, hardware=hw, stations=stations, home=home)
     say(f'done in {doc["seconds"]:.0f} s -> {out}')
     return doc
 
@@ -761,6 +782,14 @@ def main(argv: list[str] | None = None) -> int:
                     flush=True,
                 )
         _dispatch(args)
+    except HardwareCheckError as exc:
+        if args.command != 'hardware':
+            print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
+            return 1
+        # hardware check: one line per mistake, each naming the file and the key path.
+        for line in exc.problems:
+            print(f'{args.file}: {line}', file=sys.stderr)
+        return 2
     except USER_ERRORS + (OSError, ValueError) as exc:
         print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
         return 1
@@ -799,6 +828,11 @@ def _drop_if_empty(out: Path) -> None:
 
 
 def _dispatch(args: argparse.Namespace) -> None:
+    if getattr(args, 'hardware', None) is not None and args.command != 'stop':
+        from activesurv_bringup.rig.hardware import confirm_motion, read
+
+        hw = read(args.hardware)
+        confirm_motion(hw, args.command, args.yes, args.home or hw.home)
     if args.command == 'experiment':
         experiment(
             args.set_name,
@@ -867,7 +901,9 @@ def _dispatch(args: argparse.Namespace) -> None:
             args.rig_seed,
         )
     elif args.command == 'commission':
-        commission(args.out, args.rig, args.live, args.cameras, args.hardware, args.stations)
+        commission(
+            args.out, args.rig, args.live, args.cameras, args.hardware, args.stations, args.home
+        )
     elif args.command == 'lab':
         from activesurv_bringup.rig.lab import run_lab
 

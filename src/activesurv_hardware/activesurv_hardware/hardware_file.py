@@ -32,7 +32,6 @@ Everything is SI (m, s, rad) except what a controller YAML states in its own uni
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,12 +40,13 @@ from typing import Any
 import yaml
 
 from activesurv_hardware.errors import HardwareFileError
+from activesurv_hardware.schema import (
+    CameraSection,
+    HardwareFile,
+    hardware_problems,
+)
+from activesurv_sim.board import BoardFixture
 from activesurv_stages.config import ControllerConfig, controller_from_dict
-from activesurv_stages.errors import StageError
-
-TRIGGERS = ('hardware', 'software', 'free')
-SOURCE_KINDS = ('topic', 'device')
-TABLE_JOINTS = ('table_x', 'table_y')
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,8 @@ class CameraEntry:
     exposure_delay: float
     stages: ControllerConfig | None
     stages_dict: Mapping[str, Any] | None = None
+    trigger_service: str = ''  # software trigger of a driver's topic (std_srvs/Trigger)
+    trigger_lead: float = 0.0  # s: the service is called this long before the instant
 
 
 @dataclass(frozen=True)
@@ -92,7 +94,7 @@ class Geometry:
     top_marker_radius: float
     object: ObjectGeometry
     layout: str  # 'paper' or a set-up YAML path (resolved)
-    board: Mapping[str, Any]
+    board: BoardFixture
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,7 @@ class Hardware:
     table: ControllerConfig | None
     table_dict: Mapping[str, Any] | None
     overhead: CameraEntry
+    home: bool = False  # home unreferenced axes on connect (the file's home: true)
 
     @property
     def camera_ids(self) -> tuple[str, ...]:
@@ -119,175 +122,102 @@ class Hardware:
         return f'/{ns}/{relative}' if ns else f'/{relative}'
 
 
-def _number(d: Mapping[str, Any], key: str, where: str, above: float | None = None) -> float:
-    try:
-        v = float(d[key])
-    except KeyError:
-        raise HardwareFileError(f'{where}: missing {key}') from None
-    except (TypeError, ValueError):
-        raise HardwareFileError(f'{where}.{key}: not a number: {d[key]!r}') from None
-    if not math.isfinite(v) or (above is not None and not v > above):
-        bound = '' if above is None else f' > {above:g}'
-        raise HardwareFileError(f'{where}.{key}: must be a finite number{bound}, got {v}')
-    return v
-
-
-def _pair(value: Any, where: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise HardwareFileError(f'{where}: expected [min, max] in metres, got {value!r}') from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise HardwareFileError(f'{where}: need finite min < max, got [{lo}, {hi}]')
-    return lo, hi
-
-
-def _vector(value: Any, where: str) -> tuple[float, float, float]:
-    try:
-        x, y, z = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise HardwareFileError(f'{where}: expected [x, y, z], got {value!r}') from None
-    if not all(math.isfinite(v) for v in (x, y, z)):
-        raise HardwareFileError(f'{where}: not finite: {value!r}')
-    return x, y, z
-
-
-def _section(d: Mapping[str, Any], key: str, where: str) -> Mapping[str, Any]:
-    v = d.get(key)
-    if not isinstance(v, Mapping):
-        raise HardwareFileError(f'{where}: missing section {key!r} (a mapping)')
-    return v
-
-
-def _stages(value: Any, base: Path, where: str) -> tuple[ControllerConfig, dict[str, Any]]:
-    """A stage controller YAML given inline or as a path (relative to the hardware file)."""
-    if isinstance(value, str):
-        path = (base / value).resolve()
-        try:
-            data = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise HardwareFileError(f'{where}: cannot read {path}: {exc}') from exc
+def _entry(camera_id: str, cam: CameraSection) -> CameraEntry:
+    src = cam.source
+    if src.topic is not None:
+        topic = src.topic.strip()
+        parent = topic.rsplit('/', 1)[0] if '/' in topic else ''
+        info = src.camera_info or (f'{parent}/camera_info' if parent else 'camera_info')
+        source = ImageSource('topic', topic, info)
     else:
-        data = value
-    if not isinstance(data, dict):
-        raise HardwareFileError(f'{where}: a controller YAML (controller:, axes:) is needed')
+        options = {
+            k: v
+            for k in ('width', 'height', 'fps', 'fourcc', 'loop')
+            if (v := getattr(src, k)) is not None
+        }
+        source = ImageSource('device', str(src.device).strip(), '', options)
+    stages = raw = None
+    if cam.stages is not None:
+        raw = cam.stages.model_dump(mode='json')
+        stages = controller_from_dict(raw)
+    return CameraEntry(
+        camera_id,
+        source,
+        cam.trigger.value,
+        cam.frame_rate,
+        cam.exposure_delay,
+        stages,
+        raw,
+        cam.trigger_service or '',
+        cam.trigger_lead,
+    )
+
+
+def read_document(path: Path | str) -> Any:
+    """The YAML document of a hardware file.
+
+    Raises:
+        HardwareFileError: if it cannot be read or is not YAML.
+    """
+    p = Path(path)
     try:
-        return controller_from_dict(data), data
-    except (StageError, ValueError, KeyError, TypeError) as exc:
-        raise HardwareFileError(f'{where}: {exc}') from exc
+        return yaml.safe_load(p.read_text())
+    except OSError as exc:
+        raise HardwareFileError(f'cannot read hardware file {p}: {exc.strerror or exc}') from exc
+    except yaml.YAMLError as exc:
+        raise HardwareFileError(f'{p}: not YAML: {exc}') from exc
 
 
-def _source(d: Mapping[str, Any], camera_id: str, where: str) -> ImageSource:
-    src = d.get('source')
-    if not isinstance(src, Mapping) or not (set(src) & set(SOURCE_KINDS)):
-        raise HardwareFileError(f'{where}.source: give topic: IMAGE_TOPIC or device: DEVICE')
-    if 'topic' in src and 'device' in src:
-        raise HardwareFileError(f'{where}.source: topic or device, not both')
-    if 'topic' in src:
-        topic = str(src['topic']).strip()
-        if not topic:
-            raise HardwareFileError(f'{where}.source.topic: empty')
-        base = topic.rsplit('/', 1)[0] if '/' in topic else ''
-        info = str(src.get('camera_info') or (f'{base}/camera_info' if base else 'camera_info'))
-        return ImageSource('topic', topic, info)
-    device = str(src['device']).strip()
-    if not device:
-        raise HardwareFileError(f'{where}.source.device: empty')
-    options = {k: v for k, v in src.items() if k != 'device'}
-    return ImageSource('device', device, '', options)
+def validated(path: Path | str) -> HardwareFile:
+    """The hardware file checked against its schema (:mod:`activesurv_hardware.schema`).
 
-
-def _camera(camera_id: str, d: Any, base: Path, need_stages: bool) -> CameraEntry:
-    where = f'cameras.{camera_id}' if need_stages else camera_id
-    if not isinstance(d, Mapping):
-        raise HardwareFileError(f'{where}: a mapping is needed')
-    trigger = str(d.get('trigger', 'free'))
-    if trigger not in TRIGGERS:
-        raise HardwareFileError(f'{where}.trigger: one of {TRIGGERS}, got {trigger!r}')
-    rate = _number(d, 'frame_rate', where, above=0.0)
-    delay = _number({'exposure_delay': d.get('exposure_delay', 0.0)}, 'exposure_delay', where)
-    if delay < 0.0 or delay > 1.0:
-        raise HardwareFileError(f'{where}.exposure_delay: 0..1 s, got {delay}')
-    stages: ControllerConfig | None = None
-    raw: dict[str, Any] | None = None
-    if need_stages:
-        if 'stages' not in d:
-            raise HardwareFileError(f'{where}: missing stages (its controller YAML)')
-        stages, raw = _stages(d['stages'], base, f'{where}.stages')
-    return CameraEntry(camera_id, _source(d, camera_id, where), trigger, rate, delay, stages, raw)
+    Raises:
+        HardwareFileError: listing every mistake, one line each, naming its key path.
+    """
+    p = Path(path)
+    model, found = hardware_problems(read_document(p), p.resolve().parent)
+    if model is None:
+        raise HardwareFileError('\n'.join(found), found)
+    return model
 
 
 def load_hardware(path: Path | str) -> Hardware:
     """Read and check a hardware file.
 
     Raises:
-        HardwareFileError: naming the first thing that is wrong and where.
+        HardwareFileError: listing every mistake, one line each, naming its key path.
     """
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise HardwareFileError(f'cannot read hardware file {p}: {exc.strerror or exc}') from exc
-    except yaml.YAMLError as exc:
-        raise HardwareFileError(f'{p}: not YAML: {exc}') from exc
-    if not isinstance(data, Mapping):
-        raise HardwareFileError(f'{p}: a hardware file is a mapping (see activesurv hardware)')
+    model = validated(p)
     base = p.resolve().parent
-    g = _section(data, 'geometry', 'geometry')
-    table = _section(g, 'table', 'geometry')
-    obj = _section(g, 'object', 'geometry')
-    layout = str(g.get('layout', 'paper'))
-    if layout != 'paper':
-        lp = (base / layout).resolve()
-        if not lp.is_file():
-            raise HardwareFileError(f'geometry.layout: no set-up file {lp}')
-        layout = str(lp)
+    g = model.geometry
+    o = g.object
+    b = g.board
+    layout = 'paper' if g.layout == 'paper' else str((base / g.layout).resolve())
     geometry = Geometry(
-        _pair(table.get('x'), 'geometry.table.x'),
-        _pair(table.get('y'), 'geometry.table.y'),
-        _number(g, 'marker_radius', 'geometry', above=0.0),
-        _number(g, 'top_marker_radius', 'geometry', above=0.0),
-        ObjectGeometry(
-            _number(obj, 'top_height', 'geometry.object'),
-            _vector(obj.get('side_offset'), 'geometry.object.side_offset'),
-            _vector(obj.get('side_normal'), 'geometry.object.side_normal'),
-        ),
+        g.table.x,
+        g.table.y,
+        g.marker_radius,
+        g.top_marker_radius,
+        ObjectGeometry(o.top_height, o.side_offset, o.side_normal),
         layout,
-        dict(g.get('board') or {}),
+        BoardFixture(
+            b.squares, b.square_size, b.offset, b.top_squares, b.top_square_size, b.top_height
+        ),
     )
-    cams = data.get('cameras')
-    if not isinstance(cams, Mapping) or not cams:
-        raise HardwareFileError('cameras: at least one camera (id: {source, trigger, stages})')
-    cameras = {str(cid): _camera(str(cid), c, base, True) for cid, c in cams.items()}
-    joints: dict[str, str] = {}
-    for cid, cam in cameras.items():
-        for j in [a.joint for a in cam.stages.axes] if cam.stages else []:
-            if j in joints:
-                raise HardwareFileError(f'joint {j} of {cid} is also driven for {joints[j]}')
-            joints[j] = cid
-    table_cfg: ControllerConfig | None = None
-    table_raw: dict[str, Any] | None = None
-    t = data.get('table', 'none')
-    stages = t.get('stages', 'none') if isinstance(t, Mapping) else t
-    if stages not in (None, 'none'):
-        table_cfg, table_raw = _stages(stages, base, 'table.stages')
-        missing = [j for j in TABLE_JOINTS if j not in [a.joint for a in table_cfg.axes]]
-        if missing:
-            raise HardwareFileError(f'table.stages: the table controller needs joints {missing}')
-    overhead = _camera('overhead', _section(data, 'overhead', 'hardware file'), base, False)
-    ns = str(data.get('namespace', '') or '').strip('/')
-    if ns and not all(part.replace('_', 'a').isalnum() for part in ns.split('/')):
-        raise HardwareFileError(f'namespace: letters, digits, _ and / only, got {ns!r}')
+    table = model.table.stages if model.table is not None else None
+    table_raw = table.model_dump(mode='json') if table is not None else None
     return Hardware(
         p.resolve(),
-        str(data.get('name') or p.stem),
-        ns,
-        (base / str(data.get('calibration', 'calibration'))).resolve(),
+        model.name or p.stem,
+        model.namespace,
+        (base / model.calibration).resolve(),
         geometry,
-        cameras,
-        table_cfg,
+        {cid: _entry(cid, cam) for cid, cam in model.cameras.items()},
+        controller_from_dict(table_raw) if table_raw is not None else None,
         table_raw,
-        overhead,
+        _entry('overhead', model.overhead),
+        model.home,
     )
 
 
@@ -324,14 +254,18 @@ def stage_dict(controller: Mapping[str, Any], axes: Sequence[Mapping[str, Any]])
 # -- the template --------------------------------------------------------------------------
 
 HEADER = """\
+# yaml-language-server: $schema=hardware.schema.json
 # activesurv hardware file: a real rig for `activesurv experiment|surveil --hardware FILE` and
 # `activesurv commission --live --hardware FILE`. Written by `activesurv hardware template` for
 # the paper's rig (Table I, Fig. 4): four cameras on Zaber stages, a GRBL xy table, an overhead
-# camera. Edit it for yours; `activesurv hardware check FILE` says what it understood.
+# camera. Edit it for yours; `activesurv hardware check FILE` says what it understood, or every
+# mistake with its key path. `activesurv hardware schema --out hardware.schema.json` writes the
+# schema the first line names: an editor with the YAML language server then checks as you type.
 # Units: SI (m, s, rad) except inside a controller's own units (si_per_unit converts).
 name: {name}
 namespace: {namespace}        # ROS namespace of the rig's topics; bridges obey only its goals
 calibration: calibration      # written by commission --live, read by runs (relative to here)
+home: false                   # true: home unreferenced axes when the bridges connect (or --home)
 
 geometry:
   table: {{x: [{x0:g}, {x1:g}], y: [{y0:g}, {y1:g}]}}   # m: the xy table's travel, world frame
@@ -341,7 +275,14 @@ geometry:
     top_height: {top_height:g}             # m: plane of the top marker
     side_offset: {side_offset}  # m: side marker centre minus top marker centre
     side_normal: {side_normal}   # unit normal of the side marker
-  board: {{columns: 9, rows: 6, square: 0.006}}   # commissioning checkerboard (m)
+  board:                          # the commissioning boards on the carriage (what commissioning
+                                  # looks for; activesurv_sim.board.BoardFixture)
+    squares: [9, 7]               # side board: squares (columns, rows)
+    square_size: 0.004            # m: side board square
+    offset: [0.0, -0.03, 0.05]    # m: side board centre minus the carriage position
+    top_squares: [9, 7]           # top board (the overhead camera's): squares
+    top_square_size: 0.012        # m: top board square
+    top_height: 0.08              # m: top board plane
   layout: paper    # camera mounts, stage limits, initial poses: paper (paper_setup.yaml) or a
                    # set-up YAML of that format (relative to here)
 
@@ -352,10 +293,18 @@ geometry:
 #   source: {{device: /dev/video0, width: 640, height: 480}}   our `camera` node (OpenCV
 #                                            VideoCapture: an index, /dev/videoN, a video file,
 #                                            a GStreamer pipeline or an rtsp:// URL)
-#   trigger: hardware | software | free     free: the frame nearest the demand instant is taken
-#                                            (within half a period) and corrected for motion
-#   frame_rate: Hz; exposure_delay: s from the exposure to the frame's stamp
-#   stages: the controller YAML stage_bridge reads (inline as here, or a path)
+#   trigger: hardware | software | free     (required) free: the frame nearest the demand
+#                                            instant is taken and corrected for motion;
+#                                            software: trigger_service (a driver's
+#                                            std_srvs/Trigger) is called trigger_lead s ahead
+#   frame_rate: Hz; exposure_delay: s from the exposure to the frame's stamp (required;
+#     activesurv hardware measure-delay measures it)
+#   stages: the controller YAML stage_bridge reads (inline as here, or a path):
+#     controller: protocol zaber | grbl, port, baud (standard rates), poll_rate (Hz)
+#     axes: joint (the layout's joint names), axis (Zaber device 1-99 / GRBL letter),
+#       kind linear | rotary (required), si_per_unit (m or rad per controller unit), offset
+#       (SI position at controller 0), min/max (soft limits, SI), max_velocity (SI/s),
+#       max_acceleration (SI/s^2)
 cameras:
 """
 

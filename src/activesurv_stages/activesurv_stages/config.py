@@ -28,6 +28,7 @@ import yaml
 
 from activesurv_stages.errors import ConfigError, LimitError
 from activesurv_stages.kinematics import AxisLimits
+from activesurv_stages.schema import controller_problems
 
 
 @dataclass(frozen=True)
@@ -155,13 +156,14 @@ def _axis_from_dict(d: dict[str, Any]) -> AxisConfig:
 
 
 def controller_from_dict(data: dict[str, Any]) -> ControllerConfig:
-    """Parse a controller configuration.
+    """Parse a controller configuration (checked by :mod:`activesurv_stages.schema`).
 
     Raises:
-        ConfigError: naming the bad or missing key.
+        ConfigError: naming every bad, missing or unknown key.
     """
-    if not isinstance(data, dict) or 'controller' not in data or 'axes' not in data:
-        raise ConfigError('a controller config needs "controller" and "axes" sections')
+    found = controller_problems(data)
+    if found:
+        raise ConfigError('; '.join(found))
     c = data['controller']
     try:
         protocol, port = str(c['protocol']), str(c['port'])

@@ -558,6 +558,7 @@ def run_commission(
     startup_timeout: float = 60.0,
     hardware: Hardware | None = None,
     stations: int | None = None,
+    home: bool = False,
 ) -> dict[str, Any]:
     """Commission the rig into ``out`` (new or empty); returns ``commission.json``.
 
@@ -565,9 +566,10 @@ def run_commission(
         out: the calibration directory to write.
         rig: the rig to simulate, or None for ``--live`` (stages, table and cameras already
             running, on this ROS domain).
-        hardware: with ``--live``, the rig's hardware file: its stage bridges (homing every
-            axis: a calibration needs references) and camera drivers are started here, its
-            cameras' topics listened to.
+        hardware: with ``--live``, the rig's hardware file: its stage bridges and camera
+            drivers are started here, its cameras' topics listened to.
+        home: home unreferenced axes when the bridges connect (``--home`` or the file's
+            ``home: true``); never otherwise: an unreferenced axis then refuses its goals.
         cameras: the dynamic cameras to commission (default: all); the others keep nominal
             values, marked so in ``commission.json``.
         stations: at most this many stations per camera (default: all of the procedure).
@@ -591,7 +593,8 @@ def run_commission(
         launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
     topics_of: dict[str, tuple[str, str]] = {}
     if hardware is not None:
-        specs, topics_of = hardware_commission_specs(hardware, chosen, work)
+        home = home or hardware.home
+        specs, topics_of = hardware_commission_specs(hardware, chosen, work, home)
         launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
     owns = not rclpy.ok()
     if owns:
@@ -637,7 +640,7 @@ def run_commission(
 
 
 def hardware_commission_specs(
-    hw: Hardware, cameras: Sequence[str], work: Path
+    hw: Hardware, cameras: Sequence[str], work: Path, home: bool = False
 ) -> tuple[list[NodeSpec], dict[str, tuple[str, str]]]:
     """The bridges and camera drivers of a hardware file, for commissioning ``cameras``; and
     each camera's image and camera_info topics (a driver's own, or our camera node's)."""
@@ -656,7 +659,7 @@ def hardware_commission_specs(
     for stage, doc in stages.items():
         path = ctl / f'{stage}.yaml'
         path.write_text(yaml.safe_dump(dict(doc or {}), sort_keys=False))
-        specs.append(bridge_spec(stage, str(path), home=True))
+        specs.append(bridge_spec(stage, str(path), home=home))
     for cam in [hw.overhead, *(hw.cameras[c] for c in cameras)]:
         nodes, _ = source_specs(cam, str(work / 'factory'))
         specs += nodes

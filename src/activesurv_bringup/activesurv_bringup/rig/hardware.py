@@ -1,4 +1,4 @@
-"""``activesurv hardware {template,check}``: a rig's hardware file, and the paper's as a start.
+"""``activesurv hardware {template,check,schema}``: a rig's hardware file; the paper's as a start.
 
 The file's format is :mod:`activesurv_hardware.hardware_file`'s. The template is the paper's
 rig: the table's travel (Table I), the camera layout of ``paper_setup.yaml`` with each camera's
@@ -9,6 +9,11 @@ table, and every camera a ROS 2 driver's topic, free-running.
 from __future__ import annotations
 
 import argparse
+import getpass
+import json
+import os
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import yaml
@@ -31,8 +36,10 @@ from activesurv_hardware.hardware_file import (
     TemplateRig,
     describe,
     load_hardware,
+    read_document,
     template_text,
 )
+from activesurv_hardware.schema import hardware_problems, json_schema, layout_problems
 from activesurv_stages.config import motion_class
 
 
@@ -104,22 +111,151 @@ def hardware_choice(hw: Hardware, calibration: str | None) -> RigChoice:
     return RigChoice(designed, f'hardware {hw.path}', cal, str(label), hardware_layout(hw))
 
 
-def read(path: Path | str) -> Hardware:
-    """A hardware file, or a one-line ConfigError."""
+class HardwareCheckError(ConfigError):
+    """A hardware file with mistakes: :attr:`problems` holds one line per mistake."""
+
+    def __init__(self, path: Path | str, problems: list[str]) -> None:
+        n = len(problems)
+        super().__init__(
+            f'hardware file {path}: {n} mistake{"s" if n > 1 else ""}:\n  ' + '\n  '.join(problems)
+        )
+        self.problems = problems
+
+
+def port_problems(hw: Hardware) -> list[str]:
+    """Every controller port that does not exist or that this user cannot read and write."""
+    found = []
+    places = [(f'cameras.{c}.stages', cam.stages) for c, cam in hw.cameras.items()]
+    places.append(('table.stages', hw.table))
+    user = getpass.getuser()
+    for where, cfg in places:
+        if cfg is None:
+            continue
+        port = cfg.port
+        key = f'{where}.controller.port'
+        if not os.path.exists(port):
+            found.append(
+                f'{key}: {port} does not exist (is the controller plugged in and powered? '
+                'ls -l /dev/serial/by-id/ lists serial adapters under stable names)'
+            )
+        elif not os.access(port, os.R_OK | os.W_OK):
+            found.append(
+                f'{key}: {port} is not readable and writable by {user} (sudo usermod -aG '
+                'dialout $USER and log in again, or a udev rule: SUBSYSTEM=="tty", '
+                'MODE="0660", GROUP="dialout")'
+            )
+    return found
+
+
+def check_hardware(path: Path | str, ports: bool = True, layout: bool = True) -> list[str]:
+    """Every mistake of a hardware file, one line each naming its key path (empty: none).
+
+    Beyond the schema: the cameras and joints against the file's camera layout (``layout``)
+    and, for a run (``ports``), that every controller port exists and is usable.
+    """
+    p = Path(path)
+    model, found = hardware_problems(read_document(p), p.resolve().parent)
+    if model is None:
+        return found
+    hw = load_hardware(p)
+    if layout:
+        sensors = load_setup(hardware_layout(hw)).sensors
+        found += layout_problems(model, {s.camera_id: tuple(s.joint_names) for s in sensors})
+    if ports:
+        found += port_problems(hw)
+    return found
+
+
+def read(path: Path | str, ports: bool = False, layout: bool = False) -> Hardware:
+    """A hardware file, or a ConfigError listing every mistake (see :func:`check_hardware`)."""
     try:
-        return load_hardware(path)
-    except HardwareFileError as exc:
-        raise ConfigError(f'hardware file {path}: {exc}') from exc
+        found = check_hardware(path, ports, layout)
+    except HardwareFileError as exc:  # unreadable, not YAML
+        raise HardwareCheckError(path, [f'(file): {exc}']) from exc
+    if found:
+        raise HardwareCheckError(path, found)
+    return load_hardware(path)
+
+
+def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
+    """What a hardware run or commissioning will move, axis by axis (SI), before it moves."""
+    setup = load_setup(hardware_layout(hw), motion='fast')
+    lines = []
+    if home:
+        lines.append('first: every axis without a reference position homes (--home)')
+    for s in setup.sensors:
+        if s.camera_id not in hw.cameras:
+            continue
+        kinds = (['linear'] if s.has_linear else []) + ['rotary']
+        for joint, kind, lim, q in zip(
+            s.joint_names, kinds, s.limits, setup.initial[s.camera_id], strict=True
+        ):
+            unit = 'm' if kind == 'linear' else 'rad'
+            if command == 'commission':
+                lines.append(
+                    f'{joint}: over its range {lim.min_position:+.4f} .. '
+                    f'{lim.max_position:+.4f} {unit} (board stations)'
+                )
+            else:
+                lines.append(f'{joint}: from where it stands to {q:+.4f} {unit}, then dispatched')
+    if hw.table is not None:
+        g = hw.geometry
+        what = 'the board grid' if command == 'commission' else 'the experiment path'
+        lines.append(
+            f'table_x, table_y: along {what} within x {g.table_x[0]:g}..{g.table_x[1]:g} m, '
+            f'y {g.table_y[0]:g}..{g.table_y[1]:g} m'
+        )
+    return lines
+
+
+def confirm_motion(
+    hw: Hardware,
+    command: str,
+    yes: bool,
+    home: bool,
+    ask: Callable[[str], str] = input,
+    say: Callable[[str], None] = print,
+) -> None:
+    """List what will move and ask before the first motion (``--yes`` skips the question).
+
+    Raises:
+        ConfigError: if the answer is not yes, or there is no terminal to ask at.
+    """
+    if yes:
+        return
+    if not sys.stdin.isatty():
+        raise ConfigError(
+            f'activesurv {command} --hardware moves the stages of {hw.name}: with no terminal '
+            'to ask at, confirm with --yes'
+        )
+    say(f'activesurv {command} will move these axes of {hw.name} ({hw.path}):')
+    for line in motion_plan(hw, command, home):
+        say(f'  {line}')
+    answer = ask('Move them? Stop at any time with Ctrl-C or activesurv stop. [y/N] ')
+    if answer.strip().lower() not in ('y', 'yes'):
+        raise ConfigError('nothing moved: not confirmed')
 
 
 def add_arguments(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``activesurv hardware {template,check}``."""
+    """``activesurv hardware {template,check,schema}``."""
     t = sub.add_parser('template', help="write a commented hardware file (the paper's rig)")
     t.add_argument('--out', type=Path, required=True, help='file to write (must not exist)')
     t.add_argument('--name', default='paper-lab', help='the rig name in the file')
     t.add_argument('--namespace', default='', help="ROS namespace of the rig's topics")
-    c = sub.add_parser('check', help='read a hardware file and say what it describes')
+    c = sub.add_parser(
+        'check',
+        help='read a hardware file and say what it describes, or every mistake in it (exit 2)',
+    )
     c.add_argument('file', type=Path, help='the hardware file')
+    c.add_argument(
+        '--offline',
+        action='store_true',
+        help="check the file only, not that its controllers' ports exist and are usable",
+    )
+    sc = sub.add_parser(
+        'schema', help="write the hardware file's JSON Schema (for an editor's YAML server)"
+    )
+    sc.add_argument('--out', type=Path, required=True, help='file to write (must not exist)')
 
 
 def run(args: argparse.Namespace) -> list[str]:
@@ -139,4 +275,14 @@ def run(args: argparse.Namespace) -> list[str]:
             f'hardware file written: {out}',
             f'next: edit it, then activesurv hardware check {out}',
         ]
-    return describe(read(args.file))
+    if args.hardware_command == 'schema':
+        out = Path(args.out)
+        if out.exists():
+            raise ConfigError(f'{out} exists; choose a new file (nothing is overwritten)')
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(json_schema(), indent=2) + '\n')
+        return [
+            f'JSON Schema written: {out}',
+            f'first line of a hardware file beside it: # yaml-language-server: $schema={out.name}',
+        ]
+    return describe(read(args.file, ports=not args.offline, layout=True))

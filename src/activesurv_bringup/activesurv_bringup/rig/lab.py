@@ -157,6 +157,7 @@ def hardware_document(
         'name': 'lab',
         'namespace': namespace,
         'calibration': 'calibration',
+        'home': True,  # the emulated stages power up unreferenced, as real ones do
         'geometry': {
             'table': {'x': list(rig.table_x), 'y': list(rig.table_y)},
             'marker_radius': rig.marker_radius,

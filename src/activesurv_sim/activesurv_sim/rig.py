@@ -46,6 +46,7 @@ from activesurv_common.geometry import Transform, rot_x, rot_y, rot_z
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
 from activesurv_common.occlusion import Obstacle, obstacles_from_list, obstacles_to_list
 from activesurv_sim.errors import SimError
+from activesurv_sim.rig_schema import rig_problems
 
 Array = NDArray[np.float64]
 
@@ -339,8 +340,9 @@ def rig_from_dict(data: Any, defaults: Mapping[str, CameraMount] | None = None) 
     Raises:
         RigError: naming what is missing or malformed.
     """
-    if not isinstance(data, Mapping) or not isinstance(data.get('cameras'), Mapping):
-        raise RigError('a rig needs a "cameras" mapping of camera ids')
+    found = rig_problems(dict(data) if isinstance(data, Mapping) else data)
+    if found:
+        raise RigError('; '.join(found))
     cameras: dict[str, RigCamera] = {}
     try:
         for cid, entry in data['cameras'].items():

@@ -17,6 +17,7 @@ YAML files use the ROS ``camera_calibration`` layout (``image_width``, ``camera_
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -205,3 +206,22 @@ def dynamic_camera(name: str = 'cam1') -> CameraModel:
 def overhead_camera(name: str = 'overhead') -> CameraModel:
     """The paper's static overhead camera: 640x480 CCD, 12 mm lens."""
     return CameraModel.from_focal(640, 480, OVERHEAD_FOCAL_LENGTH, OVERHEAD_PIXEL_SIZE, name)
+
+
+def intrinsics_discrepancy(a: CameraModel, b: CameraModel) -> float:
+    """How far two calibrations of one camera disagree, in pixels at the image's edge.
+
+    The largest of the principal points' offsets and the focal lengths' difference as it moves
+    a point at the image border; infinite for different image sizes.
+    """
+    if (a.width, a.height) != (b.width, b.height):
+        return math.inf
+    ka, kb = np.asarray(a.K), np.asarray(b.K)
+    return float(
+        max(
+            abs(ka[0, 2] - kb[0, 2]),
+            abs(ka[1, 2] - kb[1, 2]),
+            abs(ka[0, 0] - kb[0, 0]) * 0.5 * a.width / ka[0, 0],
+            abs(ka[1, 1] - kb[1, 1]) * 0.5 * a.height / ka[1, 1],
+        )
+    )

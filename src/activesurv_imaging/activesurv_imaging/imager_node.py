@@ -25,11 +25,11 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import ImageMarker
 
+from activesurv_common.camera_model import CameraModel, intrinsics_discrepancy
 from activesurv_common.occlusion import load_obstacles
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
-    declare_mount_parameters,
     image_to_gray,
     joint_vector,
     model_from_camera_info,
@@ -68,6 +68,19 @@ PARAMS = (
     Param('inject_bias_x', 0.0, 'fault: m added to world x'),
     Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
     Param('inject_flip', False, 'fault: take the wrong circle pose'),
+    Param(
+        'camera_info_file',
+        '',
+        'commissioned intrinsics (camera_calibration YAML); used over the camera_info topic',
+    ),
+    Param(
+        'camera_info_tolerance',
+        2.0,
+        'px: a camera_info that disagrees more with camera_info_file is warned about',
+        above=0.0,
+    ),
+    # The camera's mount (what a hand-started imager needs: commissioning writes them).
+    *(Param(name, default, text) for name, (default, text) in MOUNT_PARAMETERS.items()),
 )
 
 
@@ -75,7 +88,6 @@ class ImagerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('imager', **kwargs)
         declare(self, PARAMS)
-        declare_mount_parameters(self)
         v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.camera_id = str(v['camera_id'])
         mount = mount_from_parameters(
@@ -92,6 +104,13 @@ class ImagerNode(Node):
         self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)
         self.core.warm_up()
         self.counts: Counter[str] = Counter()
+        self._info_tolerance = float(v['camera_info_tolerance'])
+        self._info_checked = False
+        if v['camera_info_file']:
+            # Commissioned intrinsics win over what a driver ships (its camera_info is then
+            # only compared with them).
+            self.core.set_camera(CameraModel.load(str(v['camera_info_file'])))
+            self.get_logger().info(f'intrinsics from {v["camera_info_file"]}')
 
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
@@ -141,6 +160,9 @@ class ImagerNode(Node):
 
     def _on_info(self, msg: CameraInfo) -> None:
         if self.core.camera is not None:
+            if not self._info_checked:
+                self._info_checked = True
+                self._compare_info(msg)
             return
         try:
             self.core.set_camera(model_from_camera_info(msg, self.camera_id))
@@ -148,6 +170,22 @@ class ImagerNode(Node):
         except VisionErrors as exc:
             self.counts['bad_camera_info'] += 1
             self.get_logger().error(f'bad camera_info: {exc}', throttle_duration_sec=5)
+
+    def _compare_info(self, msg: CameraInfo) -> None:
+        """Warn once when the driver's camera_info disagrees with the commissioned one."""
+        assert self.core.camera is not None
+        try:
+            driver = model_from_camera_info(msg, self.camera_id)
+        except VisionErrors:
+            return
+        off = intrinsics_discrepancy(self.core.camera, driver)
+        if off > self._info_tolerance:
+            self.counts['camera_info_disagrees'] += 1
+            self.get_logger().warning(
+                f"the driver's camera_info disagrees with the commissioned intrinsics by "
+                f'{off:.1f} px (tolerance {self._info_tolerance:g} px): the commissioned ones '
+                'are used; point the driver at them (its camera_info_url)'
+            )
 
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.core.joint_names)

@@ -150,6 +150,13 @@ def hardware_specs(
                         cam, exp.setup.marker_radius, motion_correction
                     ).to_parameters(),
                     **mount_parameters(s),
+                    # The commissioned intrinsics, whatever the driver's camera_info says.
+                    **(
+                        {'camera_info_file': f'{files["calibration"]}/{cid}.yaml'}
+                        if cam.source.kind == 'topic'
+                        and Path(files['calibration'], f'{cid}.yaml').is_file()
+                        else {}
+                    ),
                 },
                 remappings=remap,
             )

@@ -483,6 +483,7 @@ def commission_all(
     name: str,
     stations: int | None = None,
     layout: Path | None = None,
+    fixture: BoardFixture | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
 
@@ -492,9 +493,11 @@ def commission_all(
         rig: the simulated truth, to report each estimate's error (None when live).
         stations: at most this many stations per dynamic camera (None: all).
         layout: the set-up YAML of the rig as designed (None: the paper's).
+        fixture: the boards on the carriage (a hardware file's ``geometry.board``; None: the
+            simulator's).
     """
     nominal_cal = nominal(layout).truth()
-    fixture = BoardFixture()
+    fixture = fixture or BoardFixture()
     models = dict(nominal_cal.cameras)
     mounts = dict(nominal_cal.mounts)
     report: dict[str, Any] = {'rig': None if rig is None else rig.name, 'cameras': {}}
@@ -616,7 +619,8 @@ def run_commission(
             missing = sorted(set(stages) - set(com.states))
             raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
         progress(f'stages up: {stages}')
-        fixture = BoardFixture()
+        # The boards the hardware file names (validated there); the simulator's otherwise.
+        fixture = hardware.geometry.board if hardware is not None else BoardFixture()
         cal, report = commission_all(
             lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
             com.look_overhead(fixture),
@@ -627,7 +631,14 @@ def run_commission(
             str(out),
             stations,
             layout,
+            fixture,
         )
+        report['board'] = {
+            'squares': list(fixture.squares),
+            'square_size': fixture.square_size,
+            'top_squares': list(fixture.top_squares),
+            'top_square_size': fixture.top_square_size,
+        }
         report['seconds'] = round(time.monotonic() - started, 1)
         write_calibration(out, cal, report)
         return report

@@ -44,9 +44,36 @@ def test_template_reads_back_and_matches_the_layout(tmp_path: Path) -> None:
     assert again.returncode == 1
     assert 'exists' in again.stderr
     check = subprocess.run(
+        [ACTIVESURV, 'hardware', 'check', '--offline', str(out)], capture_output=True, text=True
+    )
+    assert check.returncode == 0, check.stderr
+    assert 'cam4: topic /cam4/image_raw, free at 30 Hz' in check.stdout
+    # Not offline: the template's ports do not exist on this machine, each one said.
+    check = subprocess.run(
         [ACTIVESURV, 'hardware', 'check', str(out)], capture_output=True, text=True
     )
-    assert 'cam4: topic /cam4/image_raw, free at 30 Hz' in check.stdout
+    assert check.returncode == 2
+    lines = check.stderr.strip().splitlines()
+    assert len(lines) == 5, lines
+    assert all(ln.startswith(f'{out}: ') and '.controller.port: /dev/tty' in ln for ln in lines)
+    # Mistakes: exit 2, one line each naming the key path.
+    text = out.read_text().replace('exposure_delay: 0.02', 'exposure_dealy: 0.02', 1)
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(text.replace('kind: rotary', 'knd: rotary', 1))
+    check = subprocess.run(
+        [ACTIVESURV, 'hardware', 'check', '--offline', str(bad)], capture_output=True, text=True
+    )
+    assert check.returncode == 2
+    assert f'{bad}: cameras.cam1.exposure_dealy: unknown key (did you mean exposure_delay?)' in (
+        check.stderr
+    )
+    assert 'knd: unknown key (did you mean kind?)' in check.stderr
+    schema = tmp_path / 'hardware.schema.json'
+    r = subprocess.run(
+        [ACTIVESURV, 'hardware', 'schema', '--out', str(schema)], capture_output=True, text=True
+    )
+    assert r.returncode == 0, r.stderr
+    assert json.loads(schema.read_text())['title'] == 'activesurv hardware file'
 
 
 def test_the_hardware_files_layout_is_the_rig_as_designed(tmp_path: Path) -> None:

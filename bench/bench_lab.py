@@ -1,0 +1,152 @@
+"""Stops on the emulated controllers (issue 36): from a stop request to the axes standing still.
+
+``stop_s.<protocol>.<way>``: median seconds from the request to the emulated axis at rest (its
+deceleration included), the axis moving at the lab's fast speed. Ways: ``stop`` (a bridge's
+``~/stop``), ``estop`` (the e-stop topic), ``shutdown`` (what SIGINT, SIGTERM and a gone
+orchestrator end in), and ``sigterm``: SIGTERM to a real ``stage_bridge`` process, through
+rclpy, the signal handler and the driver. Goal: <= 0.3 s median.
+"""
+
+from __future__ import annotations
+
+import signal
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from activesurv_bringup.rig.lab import camera_controller, table_controller
+from activesurv_dispatch.sensors import load_setup
+from activesurv_stages.bridge import BridgeWorker, LinkState
+from activesurv_stages.config import controller_from_dict
+from activesurv_stages.drivers import make_driver
+from activesurv_stages.emulators import EmulatorBase
+
+REPS = 5
+
+
+def _still_after(emu: Any, axis: Any, t0: float, timeout: float = 5.0) -> float:
+    """Seconds from ``t0`` until the emulated axis is at rest."""
+    while time.monotonic() - t0 < timeout:
+        now = time.monotonic()
+        if abs(axis.state(now)[1]) < 1e-12:
+            return now - t0
+        time.sleep(0.002)
+    raise RuntimeError('the axis did not stop')
+
+
+def _controllers(tmp: Path) -> dict[str, tuple[EmulatorBase, dict[str, Any], Callable[[], Any]]]:
+    cam1 = next(s for s in load_setup().sensors if s.camera_id == 'cam1')
+    zemu, zcfg = camera_controller(cam1, tmp / 'ttyZ')
+    gemu, gcfg = table_controller(tmp / 'ttyG')
+    return {
+        'zaber': (zemu, zcfg, lambda: zemu.axes[1]),  # type: ignore[attr-defined]
+        'grbl': (gemu, gcfg, lambda: gemu.sims['X']),  # type: ignore[attr-defined]
+    }
+
+
+def _worker_stops(emu: Any, cfg: dict[str, Any], sim: Callable[[], Any], way: str) -> float:
+    c = controller_from_dict(cfg)
+    axis = c.axes[0]
+    w = BridgeWorker(
+        lambda: make_driver(c.protocol, c.port, c.baud), list(c.axes), 20.0, 0.2, True
+    )
+    w.start()
+    try:
+        deadline = time.monotonic() + 20
+        while w.snapshot().state is not LinkState.READY or not w.snapshot().positions:
+            if time.monotonic() > deadline:
+                raise RuntimeError('bridge not ready')
+            time.sleep(0.02)
+        lo, hi = axis.limits.min_position, axis.limits.max_position
+        start = w.snapshot().positions[axis.joint]
+        target = hi - 0.01 if start < (lo + hi) / 2 else lo + 0.01
+        w.submit_goal(axis.joint, target, axis.limits.max_velocity / 12)  # the fast class
+        while abs(sim().state(time.monotonic())[1]) < 1e-9:
+            time.sleep(0.005)
+        time.sleep(0.2)  # at speed
+        t0 = time.monotonic()
+        if way == 'stop':
+            w.stop_all()
+        elif way == 'estop':
+            w.set_estop(True)
+        else:
+            w.shutdown()
+        return _still_after(emu, sim(), t0)
+    finally:
+        w.shutdown()
+
+
+def _sigterm(tmp: Path) -> float:
+    """SIGTERM to a stage_bridge process while its axis moves."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from activesurv_bringup.specs import bridge_spec
+    from activesurv_common.ros import qos, topics
+    from activesurv_interfaces.msg import StageGoal
+    from activesurv_launch.launcher import Launcher
+
+    ctl = _controllers(tmp)
+    emu, cfg, sim = ctl['zaber']
+    ctl['grbl'][0].close()
+    path = tmp / 'cam1.yaml'
+    path.write_text(yaml.safe_dump(cfg))
+    owns = not rclpy.ok()
+    if owns:
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('bench_lab_peer')
+    pub = node.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+    try:
+        with Launcher([bridge_spec('cam1', str(path), home=True)], workdir=tmp / 'logs') as la:
+            proc = next(iter(la.processes.values()))
+            joint = cfg['axes'][0]
+            deadline = time.monotonic() + 30
+            msg = StageGoal(joint_names=[joint['joint']], positions=[joint['max'] - 0.01])
+            msg.max_velocities = [0.025]
+            while abs(sim().state(time.monotonic())[1]) < 1e-9:
+                if time.monotonic() > deadline:
+                    raise RuntimeError('the bridge never moved the axis')
+                pub.publish(msg)
+                rclpy.spin_once(node, timeout_sec=0.2)
+            time.sleep(0.2)
+            t0 = time.monotonic()
+            proc.process.send_signal(signal.SIGTERM)
+            return _still_after(emu, sim(), t0)
+    finally:
+        node.destroy_node()
+        emu.close()
+        if owns:
+            rclpy.try_shutdown()
+
+
+def run() -> dict[str, object]:
+    out: dict[str, object] = {}
+    every: list[float] = []
+    for way in ('stop', 'estop', 'shutdown'):
+        for protocol in ('zaber', 'grbl'):
+            times = []
+            for _ in range(REPS):
+                with tempfile.TemporaryDirectory() as d:
+                    ctl = _controllers(Path(d))
+                    try:
+                        emu, cfg, sim = ctl[protocol]
+                        times.append(_worker_stops(emu, cfg, sim, way))
+                    finally:
+                        for e, _, _ in ctl.values():
+                            e.close()
+            out[f'stop_s.{protocol}.{way}'] = round(statistics.median(times), 4)
+            every += times
+    sig = []
+    for _ in range(3):
+        with tempfile.TemporaryDirectory() as d:
+            sig.append(_sigterm(Path(d)))
+    out['stop_s.zaber.sigterm'] = round(statistics.median(sig), 4)
+    every += sig
+    out['stop_median_s'] = round(statistics.median(every), 4)
+    out['stop_max_s'] = round(max(every), 4)
+    return out

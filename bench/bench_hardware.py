@@ -68,8 +68,8 @@ def _stop(lab: subprocess.Popen[str]) -> None:
 
 def _experiment(hw: Path, out: Path, *extra: str) -> dict[str, Any]:
     r = subprocess.run(
-        [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', 'nominal', '--home',
-         '--set', 'A', '--system', 'fast', '--out', str(out), *extra],
+        [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', 'nominal',
+         '--home', '--set', 'A', '--system', 'fast', '--out', str(out), *extra],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     if r.returncode != 0:

@@ -44,7 +44,7 @@ from typing import Any
 
 from activesurv_bringup import __version__, arguments
 from activesurv_bringup.errors import USER_ERRORS, ConfigError
-from activesurv_bringup.experiments.options import PROCESSES, RunOptions
+from activesurv_bringup.experiments.options import PROCESSES, RECORD_FRAMES, RunOptions
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
 from activesurv_bringup.rig.hardware import HardwareCheckError
 from activesurv_bringup.rig.hardware import add_arguments as add_hardware_arguments
@@ -380,6 +380,13 @@ def _add_hardware(parser: argparse.ArgumentParser) -> None:
         'home: true); never otherwise',
     )
     _add_yes(parser)
+    parser.add_argument(
+        '--record-frames',
+        choices=RECORD_FRAMES,
+        default='used',
+        help="with --hardware: the dynamic cameras' frames in the bag: used (each frame an "
+        'imager measured for a demand, PNG: look at and replay a failed demand), all, none',
+    )
 
 
 def _add_yes(parser: argparse.ArgumentParser) -> None:
@@ -438,6 +445,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         processes=str(getattr(args, 'processes', 'containers')),
         hosts=str(getattr(args, 'hosts', 'single')),
         dds_profile=dds_profile_path(profile) if profile else None,
+        record_frames=str(getattr(args, 'record_frames', 'used')),
     )
 
 

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point
+from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import ImageMarker
 
@@ -20,6 +22,20 @@ from activesurv_imaging.observation import Observation
 from activesurv_interfaces.msg import MarkerObservation
 
 NAN3 = (math.nan, math.nan, math.nan)
+PNG_MONO = 'mono8; png compressed mono8'  # image_transport's compressed format string
+
+
+def frame_to_compressed(gray: np.ndarray, stamp: float, frame_id: str) -> CompressedImage:
+    """A grey frame as a lossless PNG ``CompressedImage`` (what hardware runs record)."""
+    ok, data = cv2.imencode('.png', np.ascontiguousarray(gray, dtype=np.uint8))
+    if not ok:
+        raise ValueError('PNG encoding failed')
+    msg = CompressedImage()
+    msg.header.stamp = sec_to_time(stamp)
+    msg.header.frame_id = frame_id
+    msg.format = PNG_MONO
+    msg.data = data.tobytes()
+    return msg
 
 
 # -- observations --------------------------------------------------------------------------

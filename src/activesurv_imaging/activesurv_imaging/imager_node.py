@@ -17,11 +17,12 @@ Parameters: see ``config/imager.yaml`` (typed: :class:`activesurv_imaging.captur
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from typing import Any
 
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import ImageMarker
 
@@ -42,7 +43,11 @@ from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
 from activesurv_imaging.annotations import annotation_shapes
 from activesurv_imaging.capture import TRIGGERS, CaptureCore, ImagerConfig
-from activesurv_imaging.conversions import annotation_markers, observation_to_msg
+from activesurv_imaging.conversions import (
+    annotation_markers,
+    frame_to_compressed,
+    observation_to_msg,
+)
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
@@ -79,6 +84,7 @@ PARAMS = (
         'px: a camera_info that disagrees more with camera_info_file is warned about',
         above=0.0,
     ),
+    Param('record_frames', False, 'publish the frame of each demand (PNG) on <cam>/demand_frame'),
     # The camera's mount (what a hand-started imager needs: commissioning writes them).
     *(Param(name, default, text) for name, (default, text) in MOUNT_PARAMETERS.items()),
 )
@@ -122,6 +128,11 @@ class ImagerNode(Node):
         )
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
+        )
+        self._frame_pub = (
+            self.create_publisher(CompressedImage, topics.demand_frame(self.camera_id), qos.EVENTS)
+            if v['record_frames']
+            else None
         )
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
@@ -211,6 +222,16 @@ class ImagerNode(Node):
             if obs.status is not ObservationStatus.OK:
                 why = f'demand {obs.demand_index}: {obs.status.name}: {obs.reason}'
                 self.get_logger().warning(why)
+            self._record_frame(obs.stamp, frame)
+
+    def _record_frame(self, stamp: float, frame_id: str) -> None:
+        """The frame a demand was measured on, to look at and replay (``record_frames``)."""
+        if self._frame_pub is None or not math.isfinite(stamp):
+            return
+        found = self.core.frames.closest(stamp, 1e-6)
+        if found is not None:
+            gray = image_to_gray(found[1])
+            self._frame_pub.publish(frame_to_compressed(gray, found[0], frame_id))
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')

@@ -90,8 +90,13 @@ def hardware_specs(
     image_rate: float = 2.0,
     home: bool = False,
     motion_correction: bool = True,
+    record_frames: str = 'used',
 ) -> list[NodeSpec]:
-    """Every node of a run on the rig ``hw``, in start order (the table runner last)."""
+    """Every node of a run on the rig ``hw``, in start order (the table runner last).
+
+    ``record_frames``: ``used`` records each frame an imager measured for a demand (PNG, on
+    ``<cam>/demand_frame``), ``all`` every frame of every dynamic camera, ``none`` none.
+    """
     wall: dict[str, Any] = {'use_sim_time': False}
     files = hardware_files(exp, hw, bag.parent)
     over = pose_to_list(exp.overhead(truth=False)[1])
@@ -103,6 +108,11 @@ def hardware_specs(
         namespace=hw.namespace,
         time_origin=origin,
         truth='table controller' if hw.table is not None else None,
+        # What each imager was told, so that a replay of the recorded frames measures alike.
+        imagers={
+            cid: imager_config(cam, exp.setup.marker_radius, motion_correction).to_parameters()
+            for cid, cam in hw.cameras.items()
+        },
     )
     specs = [
         NodeSpec(
@@ -123,8 +133,12 @@ def hardware_specs(
                     hw.overhead.source.value,
                 ],
                 'exclude': ['/rosout', '/parameter_events']
-                + [f'/{cid}/image_raw' for cid in hw.cameras]
-                + [c.source.value for c in hw.cameras.values()],
+                + (
+                    []
+                    if record_frames == 'all'
+                    else [f'/{cid}/image_raw' for cid in hw.cameras]
+                    + [c.source.value for c in hw.cameras.values()]
+                ),
             },
         )
     ]
@@ -150,6 +164,7 @@ def hardware_specs(
                         cam, exp.setup.marker_radius, motion_correction
                     ).to_parameters(),
                     **mount_parameters(s),
+                    'record_frames': record_frames == 'used',
                     # The commissioned intrinsics, whatever the driver's camera_info says.
                     **(
                         {'camera_info_file': f'{files["calibration"]}/{cid}.yaml'}
@@ -283,7 +298,9 @@ def run_hardware(
     origin = time.time() + START_MARGIN
     bag = out_dir / 'bag'
     out_dir.mkdir(parents=True, exist_ok=True)
-    specs = hardware_specs(exp, hw, bag, origin, options.image_rate, home, motion_correction)
+    specs = hardware_specs(
+        exp, hw, bag, origin, options.image_rate, home, motion_correction, options.record_frames
+    )
     opts = replace(options, time_origin=origin, namespace=hw.namespace, processes='nodes')
     progress(
         f'hardware run on {hw.name}: {len(specs)} nodes; run time 0 at wall '

@@ -32,6 +32,9 @@ THREAD_LIMITS = {
 PROCESSES = ('containers', 'nodes')
 
 
+RECORD_FRAMES = ('used', 'all', 'none')
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Everything about a graph run that is not the experiment itself.
@@ -53,6 +56,8 @@ class RunOptions:
         time_origin: a hardware run: wall clock (s since the epoch) of run time 0; None: the
             simulator's /clock.
         namespace: a hardware run: the rig's ROS namespace.
+        record_frames: a hardware run's dynamic-camera frames in the bag: ``used`` (each frame
+            an imager measured for a demand, PNG), ``all`` (every frame) or ``none``.
     """
 
     rtf: float = 1.0
@@ -69,8 +74,14 @@ class RunOptions:
     preview_rate: float = 0.0
     time_origin: float | None = None
     namespace: str = ''
+    record_frames: str = 'used'
 
     def __post_init__(self) -> None:
+        if self.record_frames not in RECORD_FRAMES:
+            raise ConfigError(
+                f'--record-frames must be one of {", ".join(RECORD_FRAMES)}, '
+                f'got {self.record_frames!r}'
+            )
         if not (math.isfinite(self.rtf) and self.rtf > 0.0):
             raise ConfigError(f'--rtf must be a finite number > 0, got {self.rtf}')
         if not (math.isfinite(self.image_rate) and self.image_rate >= 0.0):

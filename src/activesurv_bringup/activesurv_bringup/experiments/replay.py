@@ -18,6 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from activesurv_bringup.errors import BagError, NodeDiedError
@@ -53,7 +54,12 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
             },
         )
     ]
+    # A hardware run's imagers: their trigger and timing as the run told them (the recorded
+    # frames are its demand frames, measured as they were).
+    told = info.get('imagers') if isinstance(info.get('imagers'), dict) else {}
     for s in setup.sensors:
+        own = dict(told.get(s.camera_id, {}))
+        own.pop('camera_id', None)
         specs.append(
             NodeSpec(
                 f'{s.camera_id}_imager',
@@ -62,9 +68,10 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
                     **sim,
                     'camera_id': s.camera_id,
                     'marker_radius': float(info['marker_radius']),
+                    **own,
                     'reliable_images': True,
-                    'exact_states': True,
-                    'frame_timeout': 3.0,
+                    'exact_states': not own,
+                    'frame_timeout': max(3.0, float(own.get('frame_timeout', 0.0))),
                     **mount_parameters(s),
                 },
             )
@@ -87,7 +94,21 @@ def _inputs(info: dict[str, Any]) -> set[str]:
     topics = {'/capture_request'}
     for c in cams:
         topics |= {f'/{c}/image_raw', f'/{c}/camera_info', f'/{c}/stage/joint_states'}
+        topics.add(f'/{c}/demand_frame')  # a hardware run's recorded frames (PNG)
     return topics
+
+
+def _as_image(m: Any) -> tuple[str, Any]:
+    """A recorded demand frame (PNG) as the camera's ``image_raw`` message."""
+    from activesurv_common.ros.conversions import gray_to_image, sec_to_time
+
+    gray = cv2.imdecode(np.frombuffer(bytes(m.msg.data), np.uint8), cv2.IMREAD_GRAYSCALE)
+    if gray is None:
+        raise BagError(f'{m.topic}: a frame that is not a PNG image')
+    stamp = m.msg.header.stamp
+    msg = gray_to_image(gray, str(m.msg.header.frame_id), sec_to_time(0.0))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(stamp.sec), int(stamp.nanosec)
+    return m.topic.removesuffix('/demand_frame') + '/image_raw', msg
 
 
 def run_replay(
@@ -136,7 +157,13 @@ def run_replay(
     )
     pubs: dict[str, Any] = {}
     for m in messages:
-        if m.topic not in pubs:
+        if m.topic.endswith('/demand_frame'):
+            image_topic = m.topic.removesuffix('/demand_frame') + '/image_raw'
+            if image_topic not in pubs:
+                pubs[image_topic] = node.create_publisher(
+                    message_class('sensor_msgs/msg/Image'), image_topic, fallback
+                )
+        elif m.topic not in pubs:
             qos = playback_qos(recorded.get(m.topic, []), fallback)
             pubs[m.topic] = node.create_publisher(message_class(m.msgtype), m.topic, qos)
     clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
@@ -187,7 +214,11 @@ def run_replay(
             if m.t_ns - last_clock > 10_000_000:
                 clock(m.t_ns)
                 last_clock = m.t_ns
-            pubs[m.topic].publish(m.raw)
+            if m.topic.endswith('/demand_frame'):
+                topic, image = _as_image(m)
+                pubs[topic].publish(image)
+            else:
+                pubs[m.topic].publish(m.raw)
         # Keep time running so that the last demands reach their fusion deadlines.
         end = messages[-1].t_ns + 3_000_000_000
         t = messages[-1].t_ns

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from activesurv_bringup.errors import BagError
+from activesurv_bringup.experiments.demand_frames import failed_demand_frames
 from activesurv_bringup.experiments.evaluation import (
     PredictionLog,
     results_document,
@@ -330,6 +331,7 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
         if p is not None:
             plots.append(p)
     plots += sorted(out_dir.glob('scene_*.png'))  # drawn from the bags' frame trees
+    frames = sorted(out_dir.glob('failed_*.png'))  # the frames behind failed demands
     table = summary_table(docs)
     lines = [
         '# activesurv experiment report',
@@ -352,6 +354,15 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
     lines += paper_section(docs)
     for p in plots:
         lines += [f'![{p.stem}]({p.name})', '']
+    if frames:
+        lines += [
+            '## The frames behind failed demands',
+            '',
+            "Each camera's recorded frame (`--record-frames used`) with what its imager found: "
+            'the fitted ellipse (green: ok, red: not), status and reason.',
+            '',
+        ]
+        lines += [f'![{p.stem}]({p.name})' for p in frames] + ['']
     for d in docs:
         faulty = sorted({c for r in d['demands'] for c in r['faulty']})
         failed = [r['index'] for r in d['demands'] if r['estimated_position'] is None]
@@ -504,6 +515,25 @@ def _scenes(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> 
             continue
 
 
+def _failed_frames(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> None:
+    """``failed_<set>_<system>_d<j>_<cam>.png``: the recorded frames of failed demands."""
+    for run, doc in zip(runs, docs, strict=True):
+        bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
+        rows = doc.get('demands', [])
+        failed = [int(r['index']) for r in rows if r.get('status') != 'ok']
+        cameras = sorted(
+            {c for r in rows for c in [*r.get('assigned', []), *r.get('cameras', [])]}
+        )
+        if not failed or not (bag / 'metadata.yaml').is_file():
+            continue
+        try:
+            failed_demand_frames(
+                bag, failed, cameras, out, f'failed_{doc.get("set")}_{doc.get("system")}'
+            )
+        except BagError:
+            continue
+
+
 def report(path: Path, out: Path | None = None) -> tuple[list[dict[str, Any]], Path]:
     """The combined report of every run under ``path``, into ``out``.
 
@@ -525,6 +555,7 @@ def report(path: Path, out: Path | None = None) -> tuple[list[dict[str, Any]], P
         out = path.parent if (path / 'metadata.yaml').is_file() else path
     out.mkdir(parents=True, exist_ok=True)
     _scenes(runs, docs, out)
+    _failed_frames(runs, docs, out)
     sessions = [(r, d) for r, d in zip(runs, docs, strict=True) if d.get('mode') == 'surveil']
     experiments = [d for d in docs if d.get('mode') != 'surveil']
     if sessions and not experiments:

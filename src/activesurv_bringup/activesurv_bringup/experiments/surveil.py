@@ -99,7 +99,9 @@ def hardware_surveil_specs(
 ) -> list[NodeSpec]:
     """A session on a real rig: the hardware graph, continuous, the table running the stream."""
     assert opts.time_origin is not None
-    specs = hardware_specs(exp, hw, bag, opts.time_origin, opts.image_rate, home)
+    specs = hardware_specs(
+        exp, hw, bag, opts.time_origin, opts.image_rate, home, True, opts.record_frames
+    )
     return continuous(specs, exp, s)
 
 

@@ -57,6 +57,12 @@ def marker_annotations(camera_id: str) -> str:
     return f'{camera_id}/marker_annotations'
 
 
+def demand_frame(camera_id: str) -> str:
+    """The frame an imager measured for a demand (sensor_msgs/CompressedImage, PNG): what a
+    hardware run records to look at and replay (``--record-frames used``)."""
+    return f'{camera_id}/demand_frame'
+
+
 def heartbeat(camera_id: str) -> str:
     """The imager's liveness beat (std_msgs/Header, frame_id = camera id, 10 Hz)."""
     return f'{camera_id}/imager/heartbeat'

@@ -173,3 +173,18 @@ def test_an_experiment_runs_on_the_lab(tmp_path: Path, wait_for_file: Callable[.
     assert any(abs(v) > 1e-3 for v in offsets)  # free-running: not the demand instants
     logs = run / 'logs'
     assert 'grbl controller on' in (logs / 'xy_table_bridge.log').read_text()
+    # Frames to debug with (--record-frames used, the default): every measured observation's
+    # frame is in the bag, and the report's drawing of a demand's frames finds them.
+    from activesurv_bringup.experiments.demand_frames import failed_demand_frames
+    from activesurv_recording.bagio import read_bag
+
+    counts: dict[str, int] = {}
+    for m in read_bag(run / 'bag', None):
+        if m.topic.endswith('/demand_frame') or m.topic == '/marker_observations':
+            counts[m.topic] = counts.get(m.topic, 0) + 1
+    frames = sum(n for t, n in counts.items() if t.endswith('/demand_frame'))
+    assert frames >= counts['/marker_observations'] - 2, counts  # a NO_IMAGE has no frame
+    drawn = failed_demand_frames(
+        run / 'bag', [0, 1], {c: 0.02 for c in ('cam1', 'cam2', 'cam3', 'cam4')}, tmp_path, 'x'
+    )
+    assert len(drawn) >= 2, drawn

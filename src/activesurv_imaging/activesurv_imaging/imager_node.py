@@ -224,14 +224,17 @@ class ImagerNode(Node):
                 self.get_logger().warning(why)
             self._record_frame(obs.stamp, frame)
 
-    def _record_frame(self, stamp: float, frame_id: str) -> None:
-        """The frame a demand was measured on, to look at and replay (``record_frames``)."""
-        if self._frame_pub is None or not math.isfinite(stamp):
+    def _record_frame(self, exposed: float, frame_id: str) -> None:
+        """The frame a demand was measured on, to look at and replay (``record_frames``): as
+        the camera stamped it (the observation's stamp is its exposure instant, that minus
+        ``exposure_delay``)."""
+        if self._frame_pub is None or not math.isfinite(exposed):
             return
-        found = self.core.frames.closest(stamp, 1e-6)
+        found = self.core.frames.closest(exposed, 1e-6)
         if found is not None:
-            gray = image_to_gray(found[1])
-            self._frame_pub.publish(frame_to_compressed(gray, found[0], frame_id))
+            image = found[1]
+            stamped = time_to_sec(image.header.stamp)
+            self._frame_pub.publish(frame_to_compressed(image_to_gray(image), stamped, frame_id))
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')

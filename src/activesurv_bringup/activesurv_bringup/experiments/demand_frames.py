@@ -7,7 +7,7 @@ the default); the report shows those of the demands that did not end ``ok``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -52,27 +52,37 @@ def draw(gray: np.ndarray, obs: Any, title: str) -> np.ndarray:
 
 
 def failed_demand_frames(
-    bag: Path, failed: Sequence[int], cameras: Sequence[str], out_dir: Path, prefix: str
+    bag: Path,
+    failed: Sequence[int],
+    delays: Mapping[str, float],
+    out_dir: Path,
+    prefix: str,
 ) -> list[Path]:
     """Write ``<prefix>_d<demand>_<camera>.png`` for every camera asked for a failed demand
-    whose frame the bag holds; returns the files written (none for a bag without frames)."""
+    whose frame the bag holds; returns the files written (none for a bag without frames).
+
+    ``delays``: each camera's exposure delay (s): a frame is stamped that long after the
+    exposure instant an observation carries."""
+    cameras = sorted(delays)
     wanted = set(failed)
     if not wanted:
         return []
-    frames: dict[tuple[str, int], Any] = {}
+    frames: dict[str, list[tuple[int, Any]]] = {}
     observations: list[Any] = []
     topics = {'/marker_observations'} | {f'/{c}/demand_frame' for c in cameras}
     for m in read_bag(bag, topics):
         if m.topic.endswith('/demand_frame'):
             cam = m.topic.strip('/').split('/')[0]
-            frames[(cam, _stamp(m.msg))] = m.msg
+            frames.setdefault(cam, []).append((_stamp(m.msg), m.msg))
         elif m.topic == '/marker_observations' and int(m.msg.demand_index) in wanted:
             observations.append(m.msg)
     written = []
     for obs in observations:
-        frame = frames.get((obs.camera_id, _stamp(obs)))
-        if frame is None:
+        stamped = _stamp(obs) + round(1e9 * delays.get(obs.camera_id, 0.0))
+        near = [(abs(s - stamped), f) for s, f in frames.get(obs.camera_id, [])]
+        if not near or min(d for d, _ in near) > 1_000_000:  # 1 ms
             continue
+        frame = min(near, key=lambda df: df[0])[1]
         gray = cv2.imdecode(np.frombuffer(bytes(frame.data), np.uint8), cv2.IMREAD_GRAYSCALE)
         if gray is None:
             continue

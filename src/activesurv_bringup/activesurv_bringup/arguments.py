@@ -142,6 +142,30 @@ def controllers(texts: list[str]) -> dict[str, str]:
     return out
 
 
+def timings(texts: list[str], flag: str, low: float, high: float) -> dict[str, float]:
+    """``--exposure-delay NAME=S`` / ``--clock-offset NAME=S`` (repeatable) as {NAME: s}.
+
+    Raises:
+        ConfigError: for a malformed, repeated or out-of-range entry.
+    """
+    out: dict[str, float] = {}
+    for text in texts:
+        name, _, value = text.partition('=')
+        name = name.strip()
+        try:
+            seconds = float(value)
+        except ValueError:
+            raise ConfigError(
+                f'{flag} {text!r}: expected NAME=SECONDS (e.g. cam1=0.035)'
+            ) from None
+        if not name or not math.isfinite(seconds) or not low <= seconds <= high:
+            raise ConfigError(f'{flag} {text!r}: NAME=S with S in {low:g}..{high:g} s')
+        if name in out:
+            raise ConfigError(f'{flag} {name} given twice')
+        out[name] = seconds
+    return out
+
+
 def hardware(args: argparse.Namespace) -> None:
     """``--hardware``: a readable hardware file, and nothing that only a simulation has."""
     path = _get(args, 'hardware')
@@ -230,6 +254,8 @@ def check(args: argparse.Namespace) -> None:
         scene(args)
     if cmd == 'lab':
         controllers(_get(args, 'controller') or [])
+        timings(_get(args, 'exposure_delay') or [], '--exposure-delay', 0.0, 1.0)
+        timings(_get(args, 'clock_offset') or [], '--clock-offset', -1.0, 1.0)
         positive('--frame-rate', _get(args, 'frame_rate'))
     if cmd in ('experiment', 'surveil', 'demo', 'lab', 'commission'):
         rig_file(_get(args, 'rig'))

@@ -302,6 +302,21 @@ def _build_parser() -> argparse.ArgumentParser:
         '--frame-rate', type=float, default=30.0, help="Hz the lab's cameras free-run at"
     )
     lab.add_argument('--namespace', default='', help="ROS namespace of the lab's rig")
+    lab.add_argument(
+        '--exposure-delay',
+        action='append',
+        default=[],
+        metavar='NAME=S',
+        help="a lab camera's true exposure delay (s; default 0.02, what the lab's hardware file "
+        'says): what activesurv hardware measure-delay must find',
+    )
+    lab.add_argument(
+        '--clock-offset',
+        action='append',
+        default=[],
+        metavar='NAME=S',
+        help="a lab camera's clock ahead of the host's (s): its stamps are off by it",
+    )
 
     stop = _sub(
         sub,
@@ -922,6 +937,8 @@ def _dispatch(args: argparse.Namespace) -> None:
             controllers=arguments.controllers(args.controller),
             frame_rate=args.frame_rate,
             namespace=args.namespace,
+            delays=arguments.timings(args.exposure_delay, '--exposure-delay', 0.0, 1.0),
+            offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
         )
     elif args.command == 'stop':
         from activesurv_bringup.rig.estop import run_stop  # rclpy: only this command needs it

@@ -4,7 +4,8 @@ For the hardware-in-the-loop lab (``activesurv lab``). It exposes on its own wal
 ``frame_rate`` (its phase is not the demand instants'), renders the scene as the stage and table
 controllers report it (``<camera_id>/stage/joint_states``, ``object_state``), and publishes best
 effort, as camera drivers do, each frame stamped on arrival: the exposure instant plus
-``exposure_delay`` (exposure and read-out) plus Gaussian ``jitter``; ``drop_rate`` of the frames
+``exposure_delay`` (exposure and read-out) plus Gaussian ``jitter`` plus its clock's
+``clock_offset``; ``drop_rate`` of the frames
 never arrive. Nothing here knows a capture request. Optics and mount come from the rig file
 (the truth), ``camera_info`` from the calibration the lab's driver ships (``camera_info_file``).
 What the carriage carries follows what the lab is used for: the object while something reports
@@ -48,6 +49,7 @@ from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
 LAB_PARAMS = (
     Param('exposure_delay', 0.02, 's from exposure to the frame stamp (read-out)', minimum=0.0),
     Param('jitter', 0.002, 'std of the stamp around it (s)', minimum=0.0),
+    Param('clock_offset', 0.0, "s the camera's clock is ahead of the host's (in its stamps)"),
     Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
 )
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
@@ -74,6 +76,7 @@ class LabCameraNode(Node):
         if not rate > 0.0:
             raise SimError('a lab camera free-runs: frame_rate must be > 0 Hz')
         self.delay, self.jitter = float(v['exposure_delay']), float(v['jitter'])
+        self.clock_offset = float(v['clock_offset'])
         self.drop_rate, self.hold = float(v['drop_rate']), float(v['state_hold'])
         self.rng = np.random.default_rng(int(v['seed']))
         self.frames = self.dropped = self.missed = 0
@@ -149,7 +152,8 @@ class LabCameraNode(Node):
         if self.rng.random() < self.drop_rate:
             self.dropped += 1
             return
-        stamp = sec_to_time(t + self.delay + self.jitter * float(self.rng.standard_normal()))
+        noise = self.jitter * float(self.rng.standard_normal())
+        stamp = sec_to_time(t + self.delay + self.clock_offset + noise)
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
         self.frames += 1

@@ -43,6 +43,7 @@ from activesurv_bringup.files import new_output_dir
 from activesurv_bringup.rig.commission import TABLE_RANGE, camera_spec, check_cameras
 from activesurv_bringup.rig.hardware import paper_rig
 from activesurv_bringup.rig.rigs import nominal
+from activesurv_common.lifetime import STOP_SIGNALS
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
@@ -180,10 +181,28 @@ def hardware_document(
 
 
 def lab_specs(
-    rig_file: Path, setup: Setup, cameras: Sequence[str], out: Path, rate: float, namespace: str
+    rig_file: Path,
+    setup: Setup,
+    cameras: Sequence[str],
+    out: Path,
+    rate: float,
+    namespace: str,
+    delays: Mapping[str, float] | None = None,
+    offsets: Mapping[str, float] | None = None,
 ) -> list[NodeSpec]:
     """The lab's camera drivers (the overhead one and ``cameras``): free-running on the wall
-    clock, best effort, with nominal factory calibrations as their drivers would ship."""
+    clock, best effort, with nominal factory calibrations as their drivers would ship.
+
+    ``delays`` and ``offsets`` (camera id -> s): a camera's true exposure delay and its clock's
+    offset, which the hardware file does not know (it says :data:`EXPOSURE_DELAY`)."""
+    delays, offsets = dict(delays or {}), dict(offsets or {})
+
+    def timing(cid: str) -> dict[str, float]:
+        return {
+            'exposure_delay': delays.get(cid, EXPOSURE_DELAY),
+            'clock_offset': offsets.get(cid, 0.0),
+        }
+
     factory = out / 'factory'
     nominal().truth().save(factory)
     lab = {
@@ -197,12 +216,18 @@ def lab_specs(
             'overhead',
             rig_file,
             factory,
-            {**lab, 'camera_type': 'overhead', 'frame_rate': OVERHEAD_RATE, 'seed': 499},
+            {
+                **lab,
+                'camera_type': 'overhead',
+                'frame_rate': OVERHEAD_RATE,
+                'seed': 499,
+                **timing('overhead'),
+            },
         )
     ]
     for i, s in enumerate(setup.sensors):
         if s.camera_id in cameras:
-            extra = {**lab, 'frame_rate': rate, 'seed': 500 + i}
+            extra = {**lab, 'frame_rate': rate, 'seed': 500 + i, **timing(s.camera_id)}
             specs.append(camera_spec(s.camera_id, rig_file, factory, extra))
     return [
         replace(s, module='activesurv_sim.lab_camera_node', namespace=namespace) for s in specs
@@ -228,8 +253,13 @@ def run_lab(
     controllers: Mapping[str, str] | None = None,
     frame_rate: float = 30.0,
     namespace: str = '',
+    delays: Mapping[str, float] | None = None,
+    offsets: Mapping[str, float] | None = None,
 ) -> Path:
     """Run the emulated lab until ``stop`` is set, SIGINT or SIGTERM; returns its hardware file.
+
+    ``delays``, ``offsets``: cameras' true exposure delays and clock offsets (s), unknown to
+    the hardware file the lab writes (it says :data:`EXPOSURE_DELAY` for every camera).
 
     Raises:
         ConfigError: for unknown cameras or an existing ``out``; NodeDiedError: if a camera
@@ -241,9 +271,13 @@ def run_lab(
     unknown = sorted(set(external) - {'table', *chosen})
     if unknown:
         raise ConfigError(f'--controller {unknown}: NAME is table or one of {chosen}')
+    for flag, given in (('--exposure-delay', delays), ('--clock-offset', offsets)):
+        stray = sorted(set(given or {}) - {'overhead', *chosen})
+        if stray:
+            raise ConfigError(f'{flag} {stray}: NAME is overhead or one of {chosen}')
     new_output_dir(out)
     stop = stop or threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in STOP_SIGNALS:
         signal.signal(sig, lambda *_: stop.set())
     emulators, configs = start_controllers(setup, chosen, out, external)
     hw_file = out / 'hardware.yaml'
@@ -253,7 +287,7 @@ def run_lab(
     )
     load_hardware(hw_file)  # what we wrote must read back
     launcher = Launcher(
-        lab_specs(rig_file, setup, chosen, out, frame_rate, namespace),
+        lab_specs(rig_file, setup, chosen, out, frame_rate, namespace, delays, offsets),
         workdir=out / 'logs',
         env=dict(os.environ),
     )

@@ -174,7 +174,8 @@ def hardware(args: argparse.Namespace) -> None:
             raise ConfigError('--home needs --hardware (a simulated stage is always referenced)')
         return
     # A run checks the ports too; 'activesurv stop' must work whatever the ports say.
-    run = args.command in ('experiment', 'surveil', 'commission')
+    moves = args.command == 'hardware' and _get(args, 'hardware_command') == 'measure-delay'
+    run = args.command in ('experiment', 'surveil', 'commission') or moves
     read(path, ports=run, layout=args.command in ('experiment', 'surveil'))
     if args.command == 'commission' and not args.live:
         raise ConfigError('--hardware commissions the real rig: add --live')

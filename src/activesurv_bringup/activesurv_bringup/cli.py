@@ -504,10 +504,16 @@ def experiment(
     if hardware is not None:
         from activesurv_bringup.experiments.hardware_graph import run_hardware
         from activesurv_bringup.experiments.report import load_run
-        from activesurv_bringup.rig.hardware import hardware_choice, read
+        from activesurv_bringup.rig.hardware import (
+            calibration_dir,
+            hardware_choice,
+            read,
+            with_measured_delays,
+        )
 
         hw = read(hardware)
         choice = hardware_choice(hw, calibration)
+        hw = with_measured_delays(hw, calibration_dir(hw, calibration), say)
         exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
         exp = exp.with_predictor(predictor)
         started = time.monotonic()
@@ -854,8 +860,9 @@ def _dispatch(args: argparse.Namespace) -> None:
     if getattr(args, 'hardware', None) is not None and args.command != 'stop':
         from activesurv_bringup.rig.hardware import confirm_motion, read
 
-        hw = read(args.hardware)
-        confirm_motion(hw, args.command, args.yes, args.home or hw.home)
+        rig_file = read(args.hardware)
+        what = args.hardware_command if args.command == 'hardware' else args.command
+        confirm_motion(rig_file, what, args.yes, args.home or rig_file.home)
     if args.command == 'experiment':
         experiment(
             args.set_name,
@@ -885,10 +892,16 @@ def _dispatch(args: argparse.Namespace) -> None:
 
         hw = None
         if args.hardware is not None:
-            from activesurv_bringup.rig.hardware import hardware_choice, read
+            from activesurv_bringup.rig.hardware import (
+                calibration_dir,
+                hardware_choice,
+                read,
+                with_measured_delays,
+            )
 
             hw = read(args.hardware)
             rig = hardware_choice(hw, args.calibration)
+            hw = with_measured_delays(hw, calibration_dir(hw, args.calibration), say)
         else:
             rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
         session = SurveilOptions(

@@ -56,6 +56,7 @@ class Snapshot:
 
     state: LinkState = LinkState.DISCONNECTED
     stamp: float = 0.0
+    wall: float = 0.0  # time.time() when the controller reported (mid-point of the poll)
     positions: dict[str, float] = field(default_factory=dict)
     velocities: dict[str, float] = field(default_factory=dict)
     statuses: dict[str, str] = field(default_factory=dict)
@@ -215,6 +216,7 @@ class BridgeWorker:
             return Snapshot(
                 s.state,
                 s.stamp,
+                s.wall,
                 dict(s.positions),
                 dict(s.velocities),
                 dict(s.statuses),
@@ -305,7 +307,9 @@ class BridgeWorker:
             stops = set(self._stop_request)
             self._stop_request.clear()
         self._send_stops(stops)
+        asked = time.time()
         reports = self._reports()
+        told = 0.5 * (asked + time.time())  # the controller answered about then
         unhomed = [j for j, r in reports.items() if r.needs_home]
         if unhomed and self.home_on_connect:
             self._home(unhomed)
@@ -322,6 +326,7 @@ class BridgeWorker:
                 self._snap.positions[j] = p
                 self._snap.statuses[j] = r.status
             self._snap.stamp = now
+            self._snap.wall = told
             if self._snap.state is not LinkState.READY and not unhomed:
                 self._snap.state = LinkState.READY
             goals = [] if self._estop else list(self._pending.values())

@@ -26,6 +26,7 @@ from std_msgs.msg import Bool
 from std_srvs.srv import Trigger
 
 from activesurv_common.ros import qos, topics
+from activesurv_common.ros.conversions import sec_to_time
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import StageGoal
@@ -77,6 +78,7 @@ class StageBridgeNode(Node):
         self.create_timer(1.0, self._publish_diagnostics)
         self._still_told = True  # whether standing still under the e-stop was published
         self._last_stamp = 0.0
+        self._sim_time = bool(self.get_parameter('use_sim_time').value)
         self._last_state = LinkState.DISCONNECTED
         self.refusals = 0
         self.worker.start()
@@ -125,12 +127,15 @@ class StageBridgeNode(Node):
             return  # no new poll: publish only what the controller said
         self._last_stamp = snap.stamp
         names = [j for j in self.joints if j in snap.positions]
+        # Stamped when the controller reported (not when this timer fired, up to a poll period
+        # later): what the imager and the truth interpolate at a frame's instant.
+        stamp = self.get_clock().now().to_msg() if self._sim_time else sec_to_time(snap.wall)
         self._pub.publish(
             joint_state(
                 names,
                 [snap.positions[j] for j in names],
                 [snap.velocities.get(j, 0.0) for j in names],
-                self.get_clock().now().to_msg(),
+                stamp,
             )
         )
 

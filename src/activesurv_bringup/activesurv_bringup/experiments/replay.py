@@ -56,7 +56,8 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
     ]
     # A hardware run's imagers: their trigger and timing as the run told them (the recorded
     # frames are its demand frames, measured as they were).
-    told = info.get('imagers') if isinstance(info.get('imagers'), dict) else {}
+    imagers = info.get('imagers')
+    told: dict[str, Any] = imagers if isinstance(imagers, dict) else {}
     for s in setup.sensors:
         own = dict(told.get(s.camera_id, {}))
         own.pop('camera_id', None)

@@ -521,14 +521,14 @@ def _failed_frames(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Pa
         bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
         rows = doc.get('demands', [])
         failed = [int(r['index']) for r in rows if r.get('status') != 'ok']
-        cameras = sorted(
-            {c for r in rows for c in [*r.get('assigned', []), *r.get('cameras', [])]}
-        )
+        asked = {c for r in rows for c in [*r.get('assigned', []), *r.get('cameras', [])]}
         if not failed or not (bag / 'metadata.yaml').is_file():
             continue
+        told = run_info(bag).get('imagers') or {}
+        delays = {c: float(told.get(c, {}).get('exposure_delay', 0.0)) for c in asked}
         try:
             failed_demand_frames(
-                bag, failed, cameras, out, f'failed_{doc.get("set")}_{doc.get("system")}'
+                bag, failed, delays, out, f'failed_{doc.get("set")}_{doc.get("system")}'
             )
         except BagError:
             continue

@@ -213,7 +213,14 @@ class Commissioner:
             for n, v in zip(names, q, strict=True)
         )
 
-    def move(self, stage: str, names: Sequence[str], q: Array, tol: float = 1e-5) -> None:
+    def move(
+        self,
+        stage: str,
+        names: Sequence[str],
+        q: Array,
+        tol: float = 1e-5,
+        velocities: Sequence[float] | None = None,
+    ) -> None:
         """Send a goal and wait until the stage reports it there (within ``tol``, m or rad: a
         controller rounds to its steps), at rest. Captures use the positions reported then.
 
@@ -226,7 +233,7 @@ class Commissioner:
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.joint_names = list(names)
         msg.positions = [float(v) for v in q]
-        msg.max_velocities = [0.0] * len(names)
+        msg.max_velocities = [float(v) for v in velocities or [0.0] * len(names)]
         self.goal_pubs[stage].publish(msg)
         if not self.spin_until(lambda: self._at(stage, names, q, tol), self.settle_timeout):
             raise NodeDiedError(

@@ -11,9 +11,11 @@ from __future__ import annotations
 import argparse
 import getpass
 import json
+import math
 import os
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import yaml
@@ -31,6 +33,7 @@ from activesurv_bringup.rig.rigs import (
 from activesurv_dispatch.sensors import load_setup
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.hardware_file import (
+    CameraEntry,
     Hardware,
     ObjectGeometry,
     TemplateRig,
@@ -111,6 +114,10 @@ def hardware_choice(hw: Hardware, calibration: str | None) -> RigChoice:
     return RigChoice(designed, f'hardware {hw.path}', cal, str(label), hardware_layout(hw))
 
 
+DELAYS_FILE = 'delays.yaml'
+"""What ``activesurv hardware measure-delay`` writes into a calibration directory."""
+
+
 class HardwareCheckError(ConfigError):
     """A hardware file with mistakes: :attr:`problems` holds one line per mistake."""
 
@@ -177,6 +184,70 @@ def read(path: Path | str, ports: bool = False, layout: bool = False) -> Hardwar
     return load_hardware(path)
 
 
+def read_delays(cal_dir: Path) -> dict[str, dict[str, float]]:
+    """The measured delays of a calibration directory ({} when none were measured).
+
+    Raises:
+        ConfigError: for a malformed file.
+    """
+    path = cal_dir / DELAYS_FILE
+    if not path.is_file():
+        return {}
+    try:
+        doc = yaml.safe_load(path.read_text()) or {}
+        out = {str(c): {k: float(v) for k, v in e.items()} for c, e in doc.items()}
+    except (yaml.YAMLError, AttributeError, TypeError, ValueError) as exc:
+        raise ConfigError(f'{path}: not a delays file ({exc})') from exc
+    for cid, e in out.items():
+        d = e.get('exposure_delay', math.nan)
+        if not (math.isfinite(d) and -1.0 <= d <= 1.0):
+            raise ConfigError(f'{path}: {cid}.exposure_delay must be a finite -1..1 s, got {d}')
+    return out
+
+
+def calibration_dir(hw: Hardware, calibration: str | None) -> Path:
+    """The calibration directory a hardware run uses: ``--calibration DIR``, else the file's
+    (``nominal``/``truth`` use the file's directory for what was measured there)."""
+    if calibration and calibration not in CALIBRATIONS:
+        return Path(calibration)
+    return hw.calibration
+
+
+def with_measured_delays(
+    hw: Hardware, cal_dir: Path | None, say: Callable[[str], None] = print
+) -> Hardware:
+    """The rig with the exposure delays ``activesurv hardware measure-delay`` measured into
+    ``cal_dir`` (the calibration a run uses) in place of the hardware file's guesses.
+
+    Raises:
+        ConfigError: for a malformed delays file.
+    """
+    if cal_dir is None:
+        return hw
+    measured = read_delays(cal_dir)
+    if not measured:
+        return hw
+    told = []
+
+    def entry(cam: CameraEntry) -> CameraEntry:
+        m = measured.get(cam.camera_id)
+        if m is None:
+            return cam
+        told.append(
+            f'{cam.camera_id} {1e3 * m["exposure_delay"]:.1f} ms (file '
+            f'{1e3 * cam.exposure_delay:.1f})'
+        )
+        return replace(cam, exposure_delay=float(m['exposure_delay']))
+
+    out = replace(
+        hw,
+        cameras={c: entry(e) for c, e in hw.cameras.items()},
+        overhead=entry(hw.overhead),
+    )
+    say(f'measured exposure delays ({cal_dir / DELAYS_FILE}): {", ".join(told)}')
+    return out
+
+
 def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
     """What a hardware run or commissioning will move, axis by axis (SI), before it moves."""
     setup = load_setup(hardware_layout(hw), motion='fast')
@@ -191,7 +262,7 @@ def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
             s.joint_names, kinds, s.limits, setup.initial[s.camera_id], strict=True
         ):
             unit = 'm' if kind == 'linear' else 'rad'
-            if command == 'commission':
+            if command in ('commission', 'measure-delay'):
                 lines.append(
                     f'{joint}: over its range {lim.min_position:+.4f} .. '
                     f'{lim.max_position:+.4f} {unit} (board stations)'
@@ -200,7 +271,13 @@ def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
                 lines.append(f'{joint}: from where it stands to {q:+.4f} {unit}, then dispatched')
     if hw.table is not None:
         g = hw.geometry
-        what = 'the board grid' if command == 'commission' else 'the experiment path'
+        what = (
+            'the board grid'
+            if command == 'commission'
+            else 'back and forth in front of each camera'
+            if command == 'measure-delay'
+            else 'the experiment path'
+        )
         lines.append(
             f'table_x, table_y: along {what} within x {g.table_x[0]:g}..{g.table_x[1]:g} m, '
             f'y {g.table_y[0]:g}..{g.table_y[1]:g} m'
@@ -252,6 +329,25 @@ def add_arguments(sub: argparse._SubParsersAction) -> None:  # type: ignore[type
         action='store_true',
         help="check the file only, not that its controllers' ports exist and are usable",
     )
+    md = sub.add_parser(
+        'measure-delay',
+        help="measure each camera's exposure delay and stamp jitter by sweeping the board on "
+        'the table in front of it; writes CALDIR/delays.yaml, which hardware runs use',
+    )
+    md.add_argument('--hardware', type=Path, required=True, help="the rig's hardware file")
+    md.add_argument(
+        '--calibration',
+        type=Path,
+        required=True,
+        help='the commissioned calibration directory (plans the sweeps; delays.yaml goes there)',
+    )
+    md.add_argument(
+        '--cameras', default=None, help='comma-separated cameras, overhead included (default: all)'
+    )
+    md.add_argument(
+        '--home', action='store_true', help='home unreferenced axes when the bridges connect'
+    )
+    md.add_argument('--yes', action='store_true', help='move without asking')
     sc = sub.add_parser(
         'schema', help="write the hardware file's JSON Schema (for an editor's YAML server)"
     )
@@ -274,6 +370,25 @@ def run(args: argparse.Namespace) -> list[str]:
         return [
             f'hardware file written: {out}',
             f'next: edit it, then activesurv hardware check {out}',
+        ]
+    if args.hardware_command == 'measure-delay':
+        # The ROS graph and rclpy only for this subcommand (check and template stay light).
+        from activesurv_bringup.rig.delays import run_measure_delay
+
+        hw = read(args.hardware)
+        cams = [c.strip() for c in args.cameras.split(',')] if args.cameras else None
+        fits = run_measure_delay(
+            hw,
+            Path(args.calibration),
+            cams,
+            args.home or hw.home,
+            progress=lambda text: print(f'  measure-delay: {text}', flush=True),
+        )
+        return [
+            f'{cid}: exposure_delay {1e3 * f.delay:.1f} ms (file: '
+            f'{1e3 * hw.cameras.get(cid, hw.overhead).exposure_delay:.1f}'
+            f' ms), jitter {1e3 * f.jitter:.1f} ms, {f.samples} frames'
+            for cid, f in fits.items()
         ]
     if args.hardware_command == 'schema':
         out = Path(args.out)

@@ -1,0 +1,279 @@
+"""``activesurv hardware measure-delay``: each camera's exposure delay and stamp jitter, measured.
+
+Every frame is placed in time by its stamp minus ``exposure_delay``; a lab must not have to know
+that delay to a few milliseconds. This moves the table back and forth at known speeds in front of
+each camera (the dynamic ones at their initial poses, the overhead one over the top board) and
+fits the delay that best explains where the frames show the board given where the table
+controller reported it (:mod:`activesurv_common.temporal`). The result goes to
+``CALDIR/delays.yaml`` (``{camera: {exposure_delay: s, jitter: s, samples: n}}``), which hardware
+runs use over the hardware file's guesses.
+
+The board sweep is planned from the calibration (mounts, intrinsics) and the hardware file's
+board fixture: the table position that puts the board near the image centre, and a sweep along
+the table's x that keeps it well inside the image.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+import yaml
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Image, JointState
+
+from activesurv_bringup.errors import ConfigError, NodeDiedError
+from activesurv_bringup.rig.commission import Commissioner, hardware_commission_specs
+from activesurv_bringup.rig.hardware import DELAYS_FILE, hardware_layout, read_delays
+from activesurv_bringup.rig.rigs import nominal, resolve_calibration
+from activesurv_common.calibration import Calibration
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.conversions import image_to_gray
+from activesurv_common.temporal import DelayFit, TemporalFitError, fit_delay
+from activesurv_dispatch.sensors import load_setup
+from activesurv_hardware.hardware_file import Hardware
+from activesurv_imaging.calibration import find_corners
+from activesurv_launch.launcher import Launcher
+from activesurv_recording.bagio import cdr_header
+from activesurv_sim.board import BoardFixture
+from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
+
+Progress = Callable[[str], None]
+SPEEDS = (0.02, 0.05)  # m/s of the table's passes
+HALF_SWEEP = 0.04  # m: at most this far either side of the centred position
+MARGIN = 0.3  # the board's centre stays this fraction of the image away from its edges
+
+
+def _project(model: CameraModel, T: Transform, p: Any) -> Any:
+    """Pixel of world point ``p`` for a camera at ``T`` (None behind it)."""
+    c = T.R.T @ (np.asarray(p, dtype=np.float64) - T.t)
+    if c[2] <= 1e-6:
+        return None
+    return model.project(c[None, :])[0]
+
+
+def plan_sweep(
+    model: CameraModel,
+    T_world_camera: Transform,
+    board_centre: Callable[[float, float], Any],
+    travel: tuple[tuple[float, float], tuple[float, float]],
+) -> tuple[float, float, float]:
+    """(y, x_low, x_high): where the table sweeps along x with the board in view.
+
+    Raises:
+        ConfigError: if the board is nowhere near the image at any table position.
+    """
+    (x0, x1), (y0, y1) = travel
+    centre = np.array([model.width / 2.0, model.height / 2.0])
+    half = np.array([model.width, model.height]) * (0.5 - MARGIN)
+
+    def inside(x: float, y: float) -> bool:
+        px = _project(model, T_world_camera, board_centre(x, y))
+        return px is not None and bool(np.all(np.abs(px - centre) <= half))
+
+    best: tuple[float, float, float] | None = None
+    for y in np.linspace(y0, y1, 21):
+        for x in np.linspace(x0, x1, 101):
+            px = _project(model, T_world_camera, board_centre(float(x), float(y)))
+            if px is None:
+                continue
+            d = float(np.linalg.norm(px - centre))
+            if best is None or d < best[0]:
+                best = (d, float(x), float(y))
+    if best is None or not inside(best[1], best[2]):
+        raise ConfigError('the board is not in view at any table position (check the layout)')
+    _, xc, yc = best
+    lo = hi = xc
+    step = 0.001
+    while lo - step >= x0 and xc - (lo - step) <= HALF_SWEEP and inside(lo - step, yc):
+        lo -= step
+    while hi + step <= x1 and (hi + step) - xc <= HALF_SWEEP and inside(hi + step, yc):
+        hi += step
+    if hi - lo < 0.01:
+        raise ConfigError(f'the board stays in view over {1e3 * (hi - lo):.0f} mm only')
+    return yc, lo, hi
+
+
+class _Recorder:
+    """Every frame of one camera and every table report while recording."""
+
+    def __init__(self, com: Commissioner, image_topics: Mapping[str, tuple[str, str]]) -> None:
+        self.on = ''
+        self.frames: list[tuple[float, bytes]] = []
+        self.table: list[tuple[float, float]] = []
+        node = com.node
+        node.create_subscription(
+            JointState, topics.joint_states(TABLE_ID), self._on_table, qos.STATE
+        )
+        for cid in com.images:
+            image, _ = image_topics.get(cid, (topics.image(cid), topics.camera_info(cid)))
+            node.create_subscription(Image, image, self._on_frame(cid), qos.SENSOR, raw=True)
+
+    def _on_table(self, msg: JointState) -> None:
+        if self.on:
+            at = dict(zip(msg.name, msg.position, strict=False))
+            if TABLE_JOINTS[0] in at:
+                t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                self.table.append((t, float(at[TABLE_JOINTS[0]])))
+
+    def _on_frame(self, cid: str) -> Callable[[bytes], None]:
+        def keep(data: bytes) -> None:
+            if self.on == cid:
+                with contextlib.suppress(ValueError):  # not an Image: skipped
+                    self.frames.append((cdr_header(data)[0], data))
+
+        return keep
+
+
+def _board_positions(
+    frames: Sequence[tuple[float, bytes]], squares: tuple[int, int]
+) -> tuple[list[float], list[Any]]:
+    stamps, uv = [], []
+    for stamp, data in frames:
+        gray = image_to_gray(deserialize_message(data, Image))
+        corners = find_corners(gray, squares)
+        if corners is not None:
+            stamps.append(stamp)
+            uv.append(np.asarray(corners, dtype=np.float64).reshape(-1, 2).mean(axis=0))
+    return stamps, uv
+
+
+def measure_camera(
+    com: Commissioner,
+    rec: _Recorder,
+    cid: str,
+    plan: tuple[float, float, float],
+    squares: tuple[int, int],
+    speeds: Sequence[float],
+    progress: Progress,
+) -> DelayFit:
+    """Sweep the table in front of camera ``cid`` and fit its delay."""
+    y, lo, hi = plan
+    com.move(TABLE_ID, list(TABLE_JOINTS), np.array([lo, y]), tol=2e-5)
+    rec.frames, rec.table, rec.on = [], [], cid
+    try:
+        for v in speeds:
+            for target in (hi, lo):
+                com.move(TABLE_ID, [TABLE_JOINTS[0]], np.array([target]), 2e-5, [v])
+    finally:
+        com.spin_until(lambda: False, 0.3)  # the last frames of the pass
+        rec.on = ''
+    stamps, uv = _board_positions(rec.frames, squares)
+    progress(
+        f'{cid}: {len(rec.frames)} frames, board in {len(stamps)}, {len(rec.table)} table '
+        f'reports over x {1e3 * lo:.0f}..{1e3 * hi:.0f} mm at y {1e3 * y:.0f} mm'
+    )
+    if not rec.table:
+        raise NodeDiedError('no table reports while sweeping: is the table bridge up?')
+    t, x = zip(*rec.table, strict=True)
+    try:
+        return fit_delay(stamps, np.asarray(uv).reshape(-1, 2), t, x)
+    except TemporalFitError as exc:
+        raise NodeDiedError(f'{cid}: {exc}') from exc
+
+
+def write_delays(cal_dir: Path, fits: Mapping[str, DelayFit]) -> Path:
+    """``CALDIR/delays.yaml``: the measured delays (merged with earlier cameras' there)."""
+    path = cal_dir / DELAYS_FILE
+    doc = read_delays(cal_dir)
+    full: dict[str, Any] = {c: dict(v) for c, v in doc.items()}
+    for cid, f in fits.items():
+        full[cid] = {
+            'exposure_delay': round(f.delay, 6),
+            'jitter': round(f.jitter, 6),
+            'samples': int(f.samples),
+            'rms_px': round(f.rms_px, 4),
+        }
+    cal_dir.mkdir(parents=True, exist_ok=True)
+    path.write_text(
+        '# activesurv hardware measure-delay: s from exposure to frame stamp, per camera\n'
+        + yaml.safe_dump(full, sort_keys=True)
+    )
+    return path
+
+
+def run_measure_delay(
+    hw: Hardware,
+    cal_dir: Path,
+    cameras: Sequence[str] | None = None,
+    home: bool = False,
+    speeds: Sequence[float] = SPEEDS,
+    progress: Progress = print,
+    startup_timeout: float = 60.0,
+) -> dict[str, DelayFit]:
+    """Measure the cameras' delays on the rig ``hw`` into ``cal_dir/delays.yaml``.
+
+    Raises:
+        ConfigError: without a table, a calibration, or for unknown cameras.
+        NodeDiedError: if the graph does not answer or a camera never sees the board.
+    """
+    if hw.table is None:
+        raise ConfigError(f'{hw.path}: measure-delay moves the board on the xy table: none')
+    if not (cal_dir / 'commission.json').is_file() and not any(cal_dir.glob('*.yaml')):
+        raise ConfigError(
+            f'no calibration at {cal_dir}: commission the rig first (activesurv commission '
+            f'--live --hardware {hw.path} --out {cal_dir})'
+        )
+    cal: Calibration = resolve_calibration(str(cal_dir), nominal(hardware_layout(hw)))
+    setup = load_setup(hardware_layout(hw), motion='fast')
+    chosen = list(cameras) if cameras else list(hw.cameras)
+    unknown = sorted(set(chosen) - set(hw.cameras) - {'overhead'})
+    if unknown:
+        raise ConfigError(f'no cameras {unknown} in {hw.path} (it has {list(hw.cameras)})')
+    dynamic = [c for c in chosen if c != 'overhead']
+    fixture: BoardFixture = hw.geometry.board
+    travel = (hw.geometry.table_x, hw.geometry.table_y)
+    plans: dict[str, tuple[float, float, float]] = {}
+    for cid in dynamic:
+        q = setup.initial[cid]
+        mount = cal.mounts[cid]
+        T = mount.camera_pose(float(q[0]) if mount.linear_axis is not None else 0.0, float(q[-1]))
+        plans[cid] = plan_sweep(cal.cameras[cid], T, lambda x, y: fixture.pose(x, y).t, travel)
+    plans['overhead'] = plan_sweep(
+        cal.overhead, cal.overhead_pose, lambda x, y: fixture.top_pose(x, y).t, travel
+    )
+    work = cal_dir / 'delays_work'
+    work.mkdir(parents=True, exist_ok=True)
+    specs, topics_of = hardware_commission_specs(hw, dynamic, work, home)
+    launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
+    owns = not rclpy.ok()
+    if owns:
+        rclpy.init()
+    com = Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace)
+    rec = _Recorder(com, topics_of)
+    fits: dict[str, DelayFit] = {}
+    try:
+        launcher.start()
+        stages = [TABLE_ID, *dynamic]
+        if not com.spin_until(lambda: all(s in com.states for s in stages), startup_timeout):
+            missing = sorted(set(stages) - set(com.states))
+            raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
+        for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
+            started = time.monotonic()
+            if cid != 'overhead':
+                s = setup.sensor(cid)
+                com.move(cid, list(s.joint_names), np.asarray(setup.initial[cid]), tol=2e-4)
+            squares = fixture.top_squares if cid == 'overhead' else fixture.squares
+            fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
+            fits[cid] = fit
+            progress(
+                f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter {1e3 * fit.jitter:.1f} '
+                f'ms from {fit.samples} frames (fit {fit.rms_px:.2f} px rms, '
+                f'{time.monotonic() - started:.0f} s)'
+            )
+        path = write_delays(cal_dir, fits)
+        progress(f'written: {path} (hardware runs with this calibration use it)')
+        return fits
+    finally:
+        com.close()
+        launcher.stop()
+        if owns:
+            rclpy.try_shutdown()

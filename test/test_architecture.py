@@ -53,6 +53,7 @@ ALLOWED: dict[str, set[str]] = {
     'activesurv_bringup': set(PACKAGES),
 }
 OPENCV_USERS = {
+    'activesurv_liveview',  # frames drawn for the report and the live view
     'activesurv_sim',
     'activesurv_imaging',
     'activesurv_bringup',

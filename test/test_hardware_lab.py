@@ -175,7 +175,7 @@ def test_an_experiment_runs_on_the_lab(tmp_path: Path, wait_for_file: Callable[.
     assert 'grbl controller on' in (logs / 'xy_table_bridge.log').read_text()
     # Frames to debug with (--record-frames used, the default): every measured observation's
     # frame is in the bag, and the report's drawing of a demand's frames finds them.
-    from activesurv_bringup.experiments.demand_frames import failed_demand_frames
+    from activesurv_liveview.demand_frames import failed_demand_frames
     from activesurv_recording.bagio import read_bag
 
     counts: dict[str, int] = {}

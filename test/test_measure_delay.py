@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from activesurv_bringup.rig.hardware import calibration_dir, read, with_measured_delays
+from activesurv_bringup.rig.hardware import calibration_dir, read
 from activesurv_bringup.rig.rigs import nominal
+from activesurv_hardware.delays import with_measured_delays
 from activesurv_sim.rig import save_rig
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

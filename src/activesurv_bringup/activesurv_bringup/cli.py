@@ -504,12 +504,8 @@ def experiment(
     if hardware is not None:
         from activesurv_bringup.experiments.hardware_graph import run_hardware
         from activesurv_bringup.experiments.report import load_run
-        from activesurv_bringup.rig.hardware import (
-            calibration_dir,
-            hardware_choice,
-            read,
-            with_measured_delays,
-        )
+        from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
+        from activesurv_hardware.delays import with_measured_delays
 
         hw = read(hardware)
         choice = hardware_choice(hw, calibration)
@@ -582,6 +578,29 @@ def results_on_stop(out: Path) -> Iterator[None]:
         if (out / 'bag' / 'metadata.yaml').is_file():
             load_run(out, partial=True)
         raise
+
+
+def measure_delay(args: argparse.Namespace) -> list[str]:
+    """``activesurv hardware measure-delay``: the cameras' delays into CALDIR/delays.yaml."""
+    # The ROS graph and rclpy only for this subcommand (check and template stay light).
+    from activesurv_bringup.rig.delays import run_measure_delay
+    from activesurv_bringup.rig.hardware import read
+
+    hw = read(args.hardware)
+    cams = [c.strip() for c in args.cameras.split(',')] if args.cameras else None
+    fits = run_measure_delay(
+        hw,
+        Path(args.calibration),
+        cams,
+        args.home or hw.home,
+        progress=lambda text: print(f'  measure-delay: {text}', flush=True),
+    )
+    return [
+        f'{cid}: exposure_delay {1e3 * f.delay:.1f} ms (file: '
+        f'{1e3 * hw.cameras.get(cid, hw.overhead).exposure_delay:.1f} ms), jitter '
+        f'{1e3 * f.jitter:.1f} ms, {f.samples} frames'
+        for cid, f in fits.items()
+    ]
 
 
 def _scene(
@@ -892,12 +911,8 @@ def _dispatch(args: argparse.Namespace) -> None:
 
         hw = None
         if args.hardware is not None:
-            from activesurv_bringup.rig.hardware import (
-                calibration_dir,
-                hardware_choice,
-                read,
-                with_measured_delays,
-            )
+            from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
+            from activesurv_hardware.delays import with_measured_delays
 
             hw = read(args.hardware)
             rig = hardware_choice(hw, args.calibration)
@@ -954,8 +969,8 @@ def _dispatch(args: argparse.Namespace) -> None:
             offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
         )
     elif args.command == 'stop':
-        from activesurv_bringup.rig.estop import run_stop  # rclpy: only this command needs it
         from activesurv_bringup.rig.hardware import read
+        from activesurv_hardware.ros.estop import run_stop  # rclpy: only this command needs it
 
         run_stop(
             read(args.hardware),
@@ -963,6 +978,8 @@ def _dispatch(args: argparse.Namespace) -> None:
             args.timeout,
             lambda text: print(f'activesurv stop: {text}', flush=True),
         )
+    elif args.command == 'hardware' and args.hardware_command == 'measure-delay':
+        print('\n'.join(measure_delay(args)))
     elif args.command == 'hardware':
         print('\n'.join(run_hardware_command(args)))
     elif args.command == 'rig':

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from activesurv_hardware.errors import HardwareError
 from activesurv_launch.errors import LaunchError as LaunchError
 from activesurv_launch.errors import NodeDiedError as NodeDiedError
 from activesurv_recording.errors import BagError as BagError
@@ -17,4 +18,9 @@ class ConfigError(BringupError, ValueError):
 
 
 # What a command reports as a one-line error rather than a traceback.
-USER_ERRORS: tuple[type[Exception], ...] = (BringupError, LaunchError, RecordingError)
+USER_ERRORS: tuple[type[Exception], ...] = (
+    BringupError,
+    LaunchError,
+    RecordingError,
+    HardwareError,
+)

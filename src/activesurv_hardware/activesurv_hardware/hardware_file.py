@@ -32,6 +32,8 @@ Everything is SI (m, s, rad) except what a controller YAML states in its own uni
 
 from __future__ import annotations
 
+import getpass
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,6 +221,31 @@ def load_hardware(path: Path | str) -> Hardware:
         _entry('overhead', model.overhead),
         model.home,
     )
+
+
+def port_problems(hw: Hardware) -> list[str]:
+    """Every controller port that does not exist or that this user cannot read and write."""
+    found = []
+    places = [(f'cameras.{c}.stages', cam.stages) for c, cam in hw.cameras.items()]
+    places.append(('table.stages', hw.table))
+    user = getpass.getuser()
+    for where, cfg in places:
+        if cfg is None:
+            continue
+        port = cfg.port
+        key = f'{where}.controller.port'
+        if not os.path.exists(port):
+            found.append(
+                f'{key}: {port} does not exist (is the controller plugged in and powered? '
+                'ls -l /dev/serial/by-id/ lists serial adapters under stable names)'
+            )
+        elif not os.access(port, os.R_OK | os.W_OK):
+            found.append(
+                f'{key}: {port} is not readable and writable by {user} (sudo usermod -aG '
+                'dialout $USER and log in again, or a udev rule: SUBSYSTEM=="tty", '
+                'MODE="0660", GROUP="dialout")'
+            )
+    return found
 
 
 def describe(hw: Hardware) -> list[str]:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, Generic, TypeVar
 
@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
-from activesurv_common.occlusion import Obstacle, sight_blocked
+from activesurv_common.occlusion import Obstacle, load_obstacles, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
 from activesurv_imaging.errors import ImagingError, VisionErrors
@@ -361,3 +361,27 @@ def with_pointing(
 def _finite(v: ArrayLike | None) -> NDArray[np.float64] | None:
     a = None if v is None else np.asarray(v, dtype=np.float64)
     return a if a is not None and np.all(np.isfinite(a)) else None
+
+
+def core_from_parameters(
+    values: Mapping[str, Any], mount: CameraMount | Transform, to_gray: Callable[[F], Any]
+) -> CaptureCore[F]:
+    """The imager's core from its parameters (named as :class:`ImagerConfig`'s fields;
+    ``exact_states``, ``obstacles_file``, ``sensor_model_file``, ``camera_info_file``: the
+    commissioned intrinsics, which win over a driver's camera_info), warmed up.
+
+    Raises:
+        CommonError: for a missing or malformed file.
+    """
+    names = ImagerConfig.__dataclass_fields__
+    config = ImagerConfig(
+        **{k: x for k, x in values.items() if k in names},
+        exact_state=bool(values['exact_states']),
+        obstacles=load_obstacles(str(values['obstacles_file'])),
+    )
+    model = SensorModel.load(str(values['sensor_model_file']) or None)
+    core = CaptureCore(config, mount, model, to_gray)
+    core.warm_up()
+    if values.get('camera_info_file'):
+        core.set_camera(CameraModel.load(str(values['camera_info_file'])))
+    return core

@@ -12,17 +12,50 @@ import cv2
 import numpy as np
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point
-from sensor_msgs.msg import CompressedImage
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import ImageMarker
 
-from activesurv_common.ros.conversions import pose_from_transform, sec_to_time
+from activesurv_common.camera_model import CameraModel, intrinsics_discrepancy
+from activesurv_common.ros.conversions import (
+    image_to_gray,
+    model_from_camera_info,
+    pose_from_transform,
+    sec_to_time,
+    time_to_sec,
+)
 from activesurv_imaging.annotations import Shape
+from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.observation import Observation
 from activesurv_interfaces.msg import MarkerObservation
 
 NAN3 = (math.nan, math.nan, math.nan)
 PNG_MONO = 'mono8; png compressed mono8'  # image_transport's compressed format string
+
+
+def demand_frame_msg(image: Image, frame_id: str) -> CompressedImage:
+    """The frame an imager measured, as recorded: PNG, stamped as the camera stamped it (an
+    observation's stamp is its exposure instant, this stamp minus ``exposure_delay``)."""
+    return frame_to_compressed(image_to_gray(image), time_to_sec(image.header.stamp), frame_id)
+
+
+def info_disagreement(
+    commissioned: CameraModel, msg: CameraInfo, camera_id: str, tolerance: float
+) -> str | None:
+    """Why a driver's camera_info is not to be trusted beside the commissioned intrinsics (it
+    disagrees beyond ``tolerance`` px), or None."""
+    try:
+        driver = model_from_camera_info(msg, camera_id)
+    except VisionErrors:
+        return None
+    off = intrinsics_discrepancy(commissioned, driver)
+    if off <= tolerance:
+        return None
+    return (
+        f"the driver's camera_info disagrees with the commissioned intrinsics by {off:.1f} px "
+        f'(tolerance {tolerance:g} px): the commissioned ones are used; point the driver at '
+        'them (its camera_info_url)'
+    )
 
 
 def frame_to_compressed(gray: np.ndarray, stamp: float, frame_id: str) -> CompressedImage:

@@ -26,8 +26,6 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import ImageMarker
 
-from activesurv_common.camera_model import CameraModel, intrinsics_discrepancy
-from activesurv_common.occlusion import load_obstacles
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
@@ -39,55 +37,19 @@ from activesurv_common.ros.conversions import (
     vector3,
 )
 from activesurv_common.ros.node import run_node
-from activesurv_common.ros.parameters import Param, declare
-from activesurv_common.sensor_model import SensorModel
+from activesurv_common.ros.parameters import declare
 from activesurv_imaging.annotations import annotation_shapes
-from activesurv_imaging.capture import TRIGGERS, CaptureCore, ImagerConfig
+from activesurv_imaging.capture import CaptureCore, core_from_parameters
 from activesurv_imaging.conversions import (
     annotation_markers,
-    frame_to_compressed,
+    demand_frame_msg,
+    info_disagreement,
     observation_to_msg,
 )
 from activesurv_imaging.errors import VisionErrors
+from activesurv_imaging.imager_params import PARAMS
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
-
-PARAMS = (
-    Param('camera_id', 'cam1', 'camera this imager serves'),
-    Param('marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
-    Param('sensor_model_file', '', 'sensor model YAML; empty: the packaged model'),
-    Param('frame_tolerance', 0.005, 'max |frame stamp - demand instant| (s)', above=0.0),
-    Param('frame_timeout', 1.0, 's after the demand instant to wait for a frame', above=0.0),
-    Param('joint_hold', 0.2, 's a stage state may be held beyond its stamp', above=0.0),
-    Param('reliable_images', False, 'images and stage states reliably (publishers must be)'),
-    Param('exact_states', False, 'wait for a stage state stamped at the frame (trigger latch)'),
-    Param('trigger', 'hardware', 'how the camera exposes', choices=TRIGGERS),
-    Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
-    Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
-    Param('motion_correction', True, "move a free-running frame's marker to the instant"),
-    Param('free_reach', 3.25, 'free-running: periods the taken frame may be off', minimum=0.5),
-    Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),
-    Param('pointing_std', 1e-4, 'rad: calibration pointing error', minimum=0.0, maximum=0.1),
-    Param('obstacles_file', '', "YAML with the cell's obstacles (a rig or set-up file)"),
-    Param('several_objects', False, 'measure the marker nearest the predicted one of several'),
-    Param('inject_bias_x', 0.0, 'fault: m added to world x'),
-    Param('inject_noise', 0.0, 'fault: extra position std (m)', minimum=0.0),
-    Param('inject_flip', False, 'fault: take the wrong circle pose'),
-    Param(
-        'camera_info_file',
-        '',
-        'commissioned intrinsics (camera_calibration YAML); used over the camera_info topic',
-    ),
-    Param(
-        'camera_info_tolerance',
-        2.0,
-        'px: a camera_info that disagrees more with camera_info_file is warned about',
-        above=0.0,
-    ),
-    Param('record_frames', False, 'publish the frame of each demand (PNG) on <cam>/demand_frame'),
-    # The camera's mount (what a hand-started imager needs: commissioning writes them).
-    *(Param(name, default, text) for name, (default, text) in MOUNT_PARAMETERS.items()),
-)
 
 
 class ImagerNode(Node):
@@ -96,27 +58,11 @@ class ImagerNode(Node):
         declare(self, PARAMS)
         v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.camera_id = str(v['camera_id'])
-        mount = mount_from_parameters(
-            self.camera_id, {n: self.get_parameter(n).value for n in MOUNT_PARAMETERS}
-        )
-        # The parameters are named as ImagerConfig's fields (exact_states: exact_state).
-        fields = ImagerConfig.__dataclass_fields__
-        config = ImagerConfig(
-            **{k: x for k, x in v.items() if k in fields},
-            exact_state=bool(v['exact_states']),
-            obstacles=load_obstacles(str(v['obstacles_file'])),
-        )
-        model = SensorModel.load(str(v['sensor_model_file']) or None)
-        self.core: CaptureCore[Image] = CaptureCore(config, mount, model, image_to_gray)
-        self.core.warm_up()
+        mount = mount_from_parameters(self.camera_id, {n: v[n] for n in MOUNT_PARAMETERS})
+        self.core: CaptureCore[Image] = core_from_parameters(v, mount, image_to_gray)
         self.counts: Counter[str] = Counter()
         self._info_tolerance = float(v['camera_info_tolerance'])
-        self._info_checked = False
-        if v['camera_info_file']:
-            # Commissioned intrinsics win over what a driver ships (its camera_info is then
-            # only compared with them).
-            self.core.set_camera(CameraModel.load(str(v['camera_info_file'])))
-            self.get_logger().info(f'intrinsics from {v["camera_info_file"]}')
+        self._info_checked = False  # a driver's camera_info only compared with the file's
 
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
@@ -185,18 +131,10 @@ class ImagerNode(Node):
     def _compare_info(self, msg: CameraInfo) -> None:
         """Warn once when the driver's camera_info disagrees with the commissioned one."""
         assert self.core.camera is not None
-        try:
-            driver = model_from_camera_info(msg, self.camera_id)
-        except VisionErrors:
-            return
-        off = intrinsics_discrepancy(self.core.camera, driver)
-        if off > self._info_tolerance:
+        why = info_disagreement(self.core.camera, msg, self.camera_id, self._info_tolerance)
+        if why:
             self.counts['camera_info_disagrees'] += 1
-            self.get_logger().warning(
-                f"the driver's camera_info disagrees with the commissioned intrinsics by "
-                f'{off:.1f} px (tolerance {self._info_tolerance:g} px): the commissioned ones '
-                'are used; point the driver at them (its camera_info_url)'
-            )
+            self.get_logger().warning(why)
 
     def _on_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.core.joint_names)
@@ -225,16 +163,11 @@ class ImagerNode(Node):
             self._record_frame(obs.stamp, frame)
 
     def _record_frame(self, exposed: float, frame_id: str) -> None:
-        """The frame a demand was measured on, to look at and replay (``record_frames``): as
-        the camera stamped it (the observation's stamp is its exposure instant, that minus
-        ``exposure_delay``)."""
-        if self._frame_pub is None or not math.isfinite(exposed):
-            return
-        found = self.core.frames.closest(exposed, 1e-6)
-        if found is not None:
-            image = found[1]
-            stamped = time_to_sec(image.header.stamp)
-            self._frame_pub.publish(frame_to_compressed(image_to_gray(image), stamped, frame_id))
+        """The frame a demand was measured on, to look at and replay (``record_frames``)."""
+        if self._frame_pub is not None and math.isfinite(exposed):
+            found = self.core.frames.closest(exposed, 1e-6)
+            if found is not None:
+                self._frame_pub.publish(demand_frame_msg(found[1], frame_id))
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from activesurv_bringup.errors import BagError
-from activesurv_bringup.experiments.demand_frames import failed_demand_frames
 from activesurv_bringup.experiments.evaluation import (
     PredictionLog,
     results_document,
@@ -42,6 +41,7 @@ from activesurv_bringup.experiments.records import (
 from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
+from activesurv_liveview.demand_frames import failed_demand_frames
 from activesurv_liveview.scene import plot_scene
 from activesurv_recording.bagio import read_bag, run_info
 from activesurv_studies.tracking import TrackRecorder

@@ -24,21 +24,19 @@ from typing import Any
 
 import numpy as np
 import rclpy
-import yaml
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Image, JointState
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.rig.commission import Commissioner, hardware_commission_specs
-from activesurv_bringup.rig.hardware import DELAYS_FILE, hardware_layout, read_delays
+from activesurv_bringup.rig.hardware import hardware_layout
 from activesurv_bringup.rig.rigs import nominal, resolve_calibration
 from activesurv_common.calibration import Calibration
-from activesurv_common.camera_model import CameraModel
-from activesurv_common.geometry import Transform
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import image_to_gray
 from activesurv_common.temporal import DelayFit, TemporalFitError, fit_delay
 from activesurv_dispatch.sensors import load_setup
+from activesurv_hardware.delays import plan_sweep, write_delays
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import find_corners
 from activesurv_launch.launcher import Launcher
@@ -48,58 +46,6 @@ from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
 
 Progress = Callable[[str], None]
 SPEEDS = (0.02, 0.05)  # m/s of the table's passes
-HALF_SWEEP = 0.04  # m: at most this far either side of the centred position
-MARGIN = 0.3  # the board's centre stays this fraction of the image away from its edges
-
-
-def _project(model: CameraModel, T: Transform, p: Any) -> Any:
-    """Pixel of world point ``p`` for a camera at ``T`` (None behind it)."""
-    c = T.R.T @ (np.asarray(p, dtype=np.float64) - T.t)
-    if c[2] <= 1e-6:
-        return None
-    return model.project(c[None, :])[0]
-
-
-def plan_sweep(
-    model: CameraModel,
-    T_world_camera: Transform,
-    board_centre: Callable[[float, float], Any],
-    travel: tuple[tuple[float, float], tuple[float, float]],
-) -> tuple[float, float, float]:
-    """(y, x_low, x_high): where the table sweeps along x with the board in view.
-
-    Raises:
-        ConfigError: if the board is nowhere near the image at any table position.
-    """
-    (x0, x1), (y0, y1) = travel
-    centre = np.array([model.width / 2.0, model.height / 2.0])
-    half = np.array([model.width, model.height]) * (0.5 - MARGIN)
-
-    def inside(x: float, y: float) -> bool:
-        px = _project(model, T_world_camera, board_centre(x, y))
-        return px is not None and bool(np.all(np.abs(px - centre) <= half))
-
-    best: tuple[float, float, float] | None = None
-    for y in np.linspace(y0, y1, 21):
-        for x in np.linspace(x0, x1, 101):
-            px = _project(model, T_world_camera, board_centre(float(x), float(y)))
-            if px is None:
-                continue
-            d = float(np.linalg.norm(px - centre))
-            if best is None or d < best[0]:
-                best = (d, float(x), float(y))
-    if best is None or not inside(best[1], best[2]):
-        raise ConfigError('the board is not in view at any table position (check the layout)')
-    _, xc, yc = best
-    lo = hi = xc
-    step = 0.001
-    while lo - step >= x0 and xc - (lo - step) <= HALF_SWEEP and inside(lo - step, yc):
-        lo -= step
-    while hi + step <= x1 and (hi + step) - xc <= HALF_SWEEP and inside(hi + step, yc):
-        hi += step
-    if hi - lo < 0.01:
-        raise ConfigError(f'the board stays in view over {1e3 * (hi - lo):.0f} mm only')
-    return yc, lo, hi
 
 
 class _Recorder:
@@ -178,26 +124,6 @@ def measure_camera(
         return fit_delay(stamps, np.asarray(uv).reshape(-1, 2), t, x)
     except TemporalFitError as exc:
         raise NodeDiedError(f'{cid}: {exc}') from exc
-
-
-def write_delays(cal_dir: Path, fits: Mapping[str, DelayFit]) -> Path:
-    """``CALDIR/delays.yaml``: the measured delays (merged with earlier cameras' there)."""
-    path = cal_dir / DELAYS_FILE
-    doc = read_delays(cal_dir)
-    full: dict[str, Any] = {c: dict(v) for c, v in doc.items()}
-    for cid, f in fits.items():
-        full[cid] = {
-            'exposure_delay': round(f.delay, 6),
-            'jitter': round(f.jitter, 6),
-            'samples': int(f.samples),
-            'rms_px': round(f.rms_px, 4),
-        }
-    cal_dir.mkdir(parents=True, exist_ok=True)
-    path.write_text(
-        '# activesurv hardware measure-delay: s from exposure to frame stamp, per camera\n'
-        + yaml.safe_dump(full, sort_keys=True)
-    )
-    return path
 
 
 def run_measure_delay(

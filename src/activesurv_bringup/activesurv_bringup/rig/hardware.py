@@ -9,13 +9,9 @@ table, and every camera a ROS 2 driver's topic, free-running.
 from __future__ import annotations
 
 import argparse
-import getpass
 import json
-import math
-import os
 import sys
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 import yaml
@@ -33,12 +29,12 @@ from activesurv_bringup.rig.rigs import (
 from activesurv_dispatch.sensors import load_setup
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.hardware_file import (
-    CameraEntry,
     Hardware,
     ObjectGeometry,
     TemplateRig,
     describe,
     load_hardware,
+    port_problems,
     read_document,
     template_text,
 )
@@ -114,10 +110,6 @@ def hardware_choice(hw: Hardware, calibration: str | None) -> RigChoice:
     return RigChoice(designed, f'hardware {hw.path}', cal, str(label), hardware_layout(hw))
 
 
-DELAYS_FILE = 'delays.yaml'
-"""What ``activesurv hardware measure-delay`` writes into a calibration directory."""
-
-
 class HardwareCheckError(ConfigError):
     """A hardware file with mistakes: :attr:`problems` holds one line per mistake."""
 
@@ -127,31 +119,6 @@ class HardwareCheckError(ConfigError):
             f'hardware file {path}: {n} mistake{"s" if n > 1 else ""}:\n  ' + '\n  '.join(problems)
         )
         self.problems = problems
-
-
-def port_problems(hw: Hardware) -> list[str]:
-    """Every controller port that does not exist or that this user cannot read and write."""
-    found = []
-    places = [(f'cameras.{c}.stages', cam.stages) for c, cam in hw.cameras.items()]
-    places.append(('table.stages', hw.table))
-    user = getpass.getuser()
-    for where, cfg in places:
-        if cfg is None:
-            continue
-        port = cfg.port
-        key = f'{where}.controller.port'
-        if not os.path.exists(port):
-            found.append(
-                f'{key}: {port} does not exist (is the controller plugged in and powered? '
-                'ls -l /dev/serial/by-id/ lists serial adapters under stable names)'
-            )
-        elif not os.access(port, os.R_OK | os.W_OK):
-            found.append(
-                f'{key}: {port} is not readable and writable by {user} (sudo usermod -aG '
-                'dialout $USER and log in again, or a udev rule: SUBSYSTEM=="tty", '
-                'MODE="0660", GROUP="dialout")'
-            )
-    return found
 
 
 def check_hardware(path: Path | str, ports: bool = True, layout: bool = True) -> list[str]:
@@ -184,68 +151,12 @@ def read(path: Path | str, ports: bool = False, layout: bool = False) -> Hardwar
     return load_hardware(path)
 
 
-def read_delays(cal_dir: Path) -> dict[str, dict[str, float]]:
-    """The measured delays of a calibration directory ({} when none were measured).
-
-    Raises:
-        ConfigError: for a malformed file.
-    """
-    path = cal_dir / DELAYS_FILE
-    if not path.is_file():
-        return {}
-    try:
-        doc = yaml.safe_load(path.read_text()) or {}
-        out = {str(c): {k: float(v) for k, v in e.items()} for c, e in doc.items()}
-    except (yaml.YAMLError, AttributeError, TypeError, ValueError) as exc:
-        raise ConfigError(f'{path}: not a delays file ({exc})') from exc
-    for cid, e in out.items():
-        d = e.get('exposure_delay', math.nan)
-        if not (math.isfinite(d) and -1.0 <= d <= 1.0):
-            raise ConfigError(f'{path}: {cid}.exposure_delay must be a finite -1..1 s, got {d}')
-    return out
-
-
 def calibration_dir(hw: Hardware, calibration: str | None) -> Path:
     """The calibration directory a hardware run uses: ``--calibration DIR``, else the file's
     (``nominal``/``truth`` use the file's directory for what was measured there)."""
     if calibration and calibration not in CALIBRATIONS:
         return Path(calibration)
     return hw.calibration
-
-
-def with_measured_delays(
-    hw: Hardware, cal_dir: Path | None, say: Callable[[str], None] = print
-) -> Hardware:
-    """The rig with the exposure delays ``activesurv hardware measure-delay`` measured into
-    ``cal_dir`` (the calibration a run uses) in place of the hardware file's guesses.
-
-    Raises:
-        ConfigError: for a malformed delays file.
-    """
-    if cal_dir is None:
-        return hw
-    measured = read_delays(cal_dir)
-    if not measured:
-        return hw
-    told = []
-
-    def entry(cam: CameraEntry) -> CameraEntry:
-        m = measured.get(cam.camera_id)
-        if m is None:
-            return cam
-        told.append(
-            f'{cam.camera_id} {1e3 * m["exposure_delay"]:.1f} ms (file '
-            f'{1e3 * cam.exposure_delay:.1f})'
-        )
-        return replace(cam, exposure_delay=float(m['exposure_delay']))
-
-    out = replace(
-        hw,
-        cameras={c: entry(e) for c, e in hw.cameras.items()},
-        overhead=entry(hw.overhead),
-    )
-    say(f'measured exposure delays ({cal_dir / DELAYS_FILE}): {", ".join(told)}')
-    return out
 
 
 def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
@@ -370,25 +281,6 @@ def run(args: argparse.Namespace) -> list[str]:
         return [
             f'hardware file written: {out}',
             f'next: edit it, then activesurv hardware check {out}',
-        ]
-    if args.hardware_command == 'measure-delay':
-        # The ROS graph and rclpy only for this subcommand (check and template stay light).
-        from activesurv_bringup.rig.delays import run_measure_delay
-
-        hw = read(args.hardware)
-        cams = [c.strip() for c in args.cameras.split(',')] if args.cameras else None
-        fits = run_measure_delay(
-            hw,
-            Path(args.calibration),
-            cams,
-            args.home or hw.home,
-            progress=lambda text: print(f'  measure-delay: {text}', flush=True),
-        )
-        return [
-            f'{cid}: exposure_delay {1e3 * f.delay:.1f} ms (file: '
-            f'{1e3 * hw.cameras.get(cid, hw.overhead).exposure_delay:.1f}'
-            f' ms), jitter {1e3 * f.jitter:.1f} ms, {f.samples} frames'
-            for cid, f in fits.items()
         ]
     if args.hardware_command == 'schema':
         out = Path(args.out)

@@ -23,10 +23,15 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool
 
-from activesurv_bringup.errors import ConfigError
 from activesurv_common.ros import qos, topics
+from activesurv_hardware.errors import HardwareError
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_sim.conversions import TABLE_ID
+
+
+class EstopError(HardwareError):
+    """The e-stop could not be confirmed (a bridge did not answer), or nothing to stop."""
+
 
 BRIDGE_STATUS = 'activesurv/stage_bridge/{}'  # the name each bridge's diagnostics carry
 
@@ -76,11 +81,11 @@ def run_stop(
         Seconds from the e-stop's publication to the last confirmation.
 
     Raises:
-        ConfigError: when a bridge did not confirm within ``timeout`` (naming it).
+        EstopError: when a bridge did not confirm within ``timeout`` (naming it).
     """
     wanted = bridges(hw)
     if not wanted:
-        raise ConfigError(f'{hw.path}: the rig has no stage controllers to stop')
+        raise EstopError(f'{hw.path}: the rig has no stage controllers to stop')
     owns = not rclpy.ok()
     if owns:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -97,7 +102,7 @@ def run_stop(
         deadline = t0 + timeout
         while missing := heard.missing(raised):
             if time.monotonic() > deadline:
-                raise ConfigError(
+                raise EstopError(
                     f'no confirmation in {timeout:g} s from {", ".join(missing)} (not running, '
                     f'another ROS domain or namespace than {hw.namespace or "(none)"}, or its '
                     'controller does not answer)'
@@ -112,6 +117,6 @@ def run_stop(
             rclpy.spin_once(node, timeout_sec=0.05)
         return took
     finally:
-        node.destroy_node()
+        node.destroy_node()  # type: ignore[no-untyped-call]
         if owns:
             rclpy.try_shutdown()

@@ -1,0 +1,1 @@
+"""ROS-side tools of the hardware package (they import rclpy and messages)."""

@@ -54,7 +54,7 @@ def test_measure_delay_finds_what_the_file_does_not_know(
     assert doc['cam1']['exposure_delay'] == pytest.approx(0.050, abs=0.002), doc
     assert doc['overhead']['exposure_delay'] == pytest.approx(0.012, abs=0.002), doc
     assert doc['cam1']['samples'] >= 30
-    assert 0.0005 < doc['cam1']['jitter'] < 0.005  # the lab's stamps: 2 ms std
+    assert 0.001 < doc['cam1']['jitter'] < 0.004, doc  # the lab's stamps: 2 ms std
     measured = with_measured_delays(read(hw), calibration_dir(read(hw), str(cal)), lambda _: None)
     assert measured.cameras['cam1'].exposure_delay == pytest.approx(0.050, abs=0.002)
     assert read(hw).cameras['cam1'].exposure_delay == pytest.approx(0.02)

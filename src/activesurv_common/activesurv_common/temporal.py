@@ -5,11 +5,12 @@ and whatever its clock is off by). Moving a target at known speeds in front of i
 where the frames show the target with where the stage controller reported it (stamped on the
 host's clock) gives ``d``, as camera-IMU calibrators find a camera's time offset:
 
-    c_k = a + b * x_table(s_k - d)        for each image coordinate c of the target (u, v)
+    c_k = a + b x_k + e x_k^2,  x_k = x_table(s_k - d)     for each image coordinate c (u, v)
 
 ``s_k`` is frame ``k``'s stamp, ``x_table`` the controller's reports interpolated in time; the
-image coordinates depend (locally) linearly on the table position, so for a given ``d`` the
-line ``a + b x`` is a linear least-squares fit, and ``d`` is the one that fits best. Back and
+image coordinates depend smoothly on the table position (a quadratic takes up perspective over a
+sweep of a few centimetres), so for a given ``d`` the curve is a linear least-squares fit, and
+``d`` is the one that fits best. Back and
 forth passes at several speeds separate ``d`` from any static offset (the calibration's error
 moves ``a``, not ``d``). The stamps' jitter is the spread of each frame's residual turned into
 time: residual along the motion / (image speed).
@@ -55,15 +56,20 @@ def _interp(t: Array, x: Array, at: Array) -> Array:
 
 
 def _residual(d: float, s: Array, uv: Array, t: Array, x: Array) -> tuple[float, Array, Array]:
-    """Sum of squares of the best line fit at delay ``d``, the residuals and the slopes."""
+    """Sum of squares of the best quadratic fit at delay ``d``, the residuals, and each
+    frame's image displacement per metre of table (N, 2)."""
     xs = _interp(t, x, s - d)
     ok = np.isfinite(xs)
-    if ok.sum() < 4:
-        return math.inf, np.zeros((0, 2)), np.zeros(2)
-    A = np.c_[np.ones(ok.sum()), xs[ok]]
+    if ok.sum() < 6:
+        return math.inf, np.zeros((0, 2)), np.zeros((0, 2))
+    # Centred and scaled: a well-conditioned fit whatever the table coordinates are.
+    m, k = float(np.mean(xs[ok])), max(float(np.std(xs[ok])), 1e-9)
+    z = (xs[ok] - m) / k
+    A = np.c_[np.ones(ok.sum()), z, z * z]
     coef, *_ = np.linalg.lstsq(A, uv[ok], rcond=None)
     res = uv[ok] - A @ coef
-    return float(np.sum(res**2)), res, coef[1]
+    slope = (coef[1][None, :] + 2.0 * z[:, None] * coef[2][None, :]) / k
+    return float(np.sum(res**2)), res, slope
 
 
 def fit_delay(
@@ -120,9 +126,9 @@ def fit_delay(
     ok = np.isfinite(xs)
     vx = np.gradient(x, t)
     v = _interp(t, vx, s - d)[ok]
-    direction = slope / max(float(np.linalg.norm(slope)), 1e-12)
-    img_speed = np.abs(v) * float(np.linalg.norm(slope))
-    along = res @ direction
+    norm = np.maximum(np.linalg.norm(slope, axis=1), 1e-12)
+    img_speed = np.abs(v) * norm
+    along = np.sum(res * slope, axis=1) / norm
     moving = img_speed > 0.5 * float(np.max(img_speed)) if n else np.zeros(0, bool)
     dt = along[moving] / img_speed[moving]
     jitter = float(1.4826 * np.median(np.abs(dt - np.median(dt)))) if dt.size else math.nan

@@ -9,7 +9,7 @@ runs take it over the hardware file's guesses (:func:`with_measured_delays`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -39,46 +39,59 @@ def _project(model: CameraModel, T: Transform, p: Any) -> Any:
 
 def plan_sweep(
     model: CameraModel,
-    T_world_camera: Transform,
+    poses: Sequence[Transform],
     board_centre: Callable[[float, float], Any],
     travel: tuple[tuple[float, float], tuple[float, float]],
-) -> tuple[float, float, float]:
-    """(y, x_low, x_high): where the table sweeps along x with the board in view.
+) -> tuple[int, float, float, float]:
+    """Where to sweep: (index of the camera pose, y, x_low, x_high) that put the board nearest
+    the image centre, and the x range along which it stays well inside the image.
+
+    Args:
+        model: the camera's intrinsics.
+        poses: the camera's candidate poses (``T_world_camera``; one for a static camera).
+        board_centre: the board's centre (world) with the carriage at (x, y).
+        travel: the table's (x range, y range), m.
 
     Raises:
-        HardwareFileError: if the board is nowhere near the image at any table position.
+        HardwareFileError: if the board is in view at no pose and table position.
     """
     (x0, x1), (y0, y1) = travel
     centre = np.array([model.width / 2.0, model.height / 2.0])
     half = np.array([model.width, model.height]) * (0.5 - MARGIN)
+    grid = [
+        (float(x), float(y)) for y in np.linspace(y0, y1, 21) for x in np.linspace(x0, x1, 101)
+    ]
+    points = np.array([board_centre(x, y) for x, y in grid], dtype=np.float64)
+    best: tuple[float, int, int] | None = None
+    for k, T in enumerate(poses):
+        c = (points - T.t) @ T.R
+        front = np.flatnonzero(c[:, 2] > 1e-6)
+        if front.size == 0:
+            continue
+        d = np.linalg.norm(model.project(c[front]) - centre, axis=1)
+        i = int(np.argmin(d))
+        if best is None or d[i] < best[0]:
+            best = (float(d[i]), k, int(front[i]))
 
-    def inside(x: float, y: float) -> bool:
-        px = _project(model, T_world_camera, board_centre(x, y))
+    def inside(k: int, x: float, y: float) -> bool:
+        px = _project(model, poses[k], board_centre(x, y))
         return px is not None and bool(np.all(np.abs(px - centre) <= half))
 
-    best: tuple[float, float, float] | None = None
-    for y in np.linspace(y0, y1, 21):
-        for x in np.linspace(x0, x1, 101):
-            px = _project(model, T_world_camera, board_centre(float(x), float(y)))
-            if px is None:
-                continue
-            d = float(np.linalg.norm(px - centre))
-            if best is None or d < best[0]:
-                best = (d, float(x), float(y))
-    if best is None or not inside(best[1], best[2]):
+    if best is None or not inside(best[1], *grid[best[2]]):
         raise HardwareFileError(
-            'the board is not in view at any table position (check the layout)'
+            'the board is in view at no camera pose and table position (check the layout)'
         )
-    _, xc, yc = best
+    k = best[1]
+    xc, yc = grid[best[2]]
     lo = hi = xc
     step = 0.001
-    while lo - step >= x0 and xc - (lo - step) <= HALF_SWEEP and inside(lo - step, yc):
+    while lo - step >= x0 and xc - (lo - step) <= HALF_SWEEP and inside(k, lo - step, yc):
         lo -= step
-    while hi + step <= x1 and (hi + step) - xc <= HALF_SWEEP and inside(hi + step, yc):
+    while hi + step <= x1 and (hi + step) - xc <= HALF_SWEEP and inside(k, hi + step, yc):
         hi += step
     if hi - lo < 0.01:
         raise HardwareFileError(f'the board stays in view over {1e3 * (hi - lo):.0f} mm only')
-    return yc, lo, hi
+    return k, yc, lo, hi
 
 
 def write_delays(cal_dir: Path, fits: Mapping[str, DelayFit]) -> Path:

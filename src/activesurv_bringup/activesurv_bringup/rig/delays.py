@@ -158,14 +158,24 @@ def run_measure_delay(
     fixture: BoardFixture = hw.geometry.board
     travel = (hw.geometry.table_x, hw.geometry.table_y)
     plans: dict[str, tuple[float, float, float]] = {}
+    joints: dict[str, Any] = {}
     for cid in dynamic:
-        q = setup.initial[cid]
-        mount = cal.mounts[cid]
-        T = mount.camera_pose(float(q[0]) if mount.linear_axis is not None else 0.0, float(q[-1]))
-        plans[cid] = plan_sweep(cal.cameras[cid], T, lambda x, y: fixture.pose(x, y).t, travel)
-    plans['overhead'] = plan_sweep(
-        cal.overhead, cal.overhead_pose, lambda x, y: fixture.top_pose(x, y).t, travel
+        sensor, mount = setup.sensor(cid), cal.mounts[cid]
+        lims = sensor.limits
+        lin = (
+            np.linspace(lims[0].min_position, lims[0].max_position, 7)
+            if sensor.has_linear
+            else [0.0]
+        )
+        yaw = np.linspace(lims[-1].min_position, lims[-1].max_position, 41)
+        qs = [np.array([a, b] if sensor.has_linear else [b]) for a in lin for b in yaw]
+        poses = [mount.camera_pose(float(q[0]) if sensor.has_linear else 0.0, q[-1]) for q in qs]
+        k, *plan = plan_sweep(cal.cameras[cid], poses, lambda x, y: fixture.pose(x, y).t, travel)
+        plans[cid], joints[cid] = (plan[0], plan[1], plan[2]), qs[k]
+    _, *over = plan_sweep(
+        cal.overhead, [cal.overhead_pose], lambda x, y: fixture.top_pose(x, y).t, travel
     )
+    plans['overhead'] = (over[0], over[1], over[2])
     work = cal_dir / 'delays_work'
     work.mkdir(parents=True, exist_ok=True)
     specs, topics_of = hardware_commission_specs(hw, dynamic, work, home)
@@ -185,8 +195,8 @@ def run_measure_delay(
         for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
             started = time.monotonic()
             if cid != 'overhead':
-                s = setup.sensor(cid)
-                com.move(cid, list(s.joint_names), np.asarray(setup.initial[cid]), tol=2e-4)
+                names = list(setup.sensor(cid).joint_names)
+                com.move(cid, names, joints[cid], tol=2e-4)
             squares = fixture.top_squares if cid == 'overhead' else fixture.squares
             fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
             fits[cid] = fit

@@ -5,18 +5,28 @@ deceleration included), the axis moving at the lab's fast speed. Ways: ``stop`` 
 ``~/stop``), ``estop`` (the e-stop topic), ``shutdown`` (what SIGINT, SIGTERM and a gone
 orchestrator end in), and ``sigterm``: SIGTERM to a real ``stage_bridge`` process, through
 rclpy, the signal handler and the driver. Goal: <= 0.3 s median.
+
+``delay_*``: the lab with every camera's true exposure delay drawn from 5-60 ms (the hardware
+file says 20 ms for all); ``activesurv hardware measure-delay`` against it (``delay_error_ms``:
+|measured - true| per camera, goal <= 2 ms), then Set A fast on the lab with the measured delays
+(``delay_setA_fast_ok``, ``_k``, ``_median_error_mm``: 10/10 with k, <= 0.1 mm).
 """
 
 from __future__ import annotations
 
+import json
+import os
 import signal
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from activesurv_bringup.rig.lab import camera_controller, table_controller
@@ -27,6 +37,8 @@ from activesurv_stages.drivers import make_driver
 from activesurv_stages.emulators import EmulatorBase
 
 REPS = 5
+ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
+CAMERAS = ('cam1', 'cam2', 'cam3', 'cam4', 'overhead')
 
 
 def _still_after(emu: Any, axis: Any, t0: float, timeout: float = 5.0) -> float:
@@ -124,7 +136,75 @@ def _sigterm(tmp: Path) -> float:
             rclpy.try_shutdown()
 
 
+def _delays(tmp: Path) -> dict[str, object]:
+    """measure-delay against unknown delays, then Set A fast with what it measured."""
+    from activesurv_bringup.rig.rigs import nominal
+    from activesurv_sim.rig import save_rig
+
+    rng = np.random.default_rng(36)
+    truth = {c: round(float(rng.uniform(0.005, 0.060)), 4) for c in CAMERAS}
+    rig, cal, lab_dir = tmp / 'rig.yaml', tmp / 'cal', tmp / 'lab'
+    save_rig(nominal(), rig)
+    nominal().truth().save(cal)  # the lab's rig is the nominal one: its exact calibration
+    flags = [a for c, d in truth.items() for a in ('--exposure-delay', f'{c}={d}')]
+    log = (tmp / 'lab.log').open('w')
+    lab = subprocess.Popen(
+        [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(lab_dir), *flags],
+        stdout=log, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    out: dict[str, object] = {'delay_truth_ms': {c: 1e3 * d for c, d in truth.items()}}
+    try:
+        hw = lab_dir / 'hardware.yaml'
+        deadline = time.monotonic() + 60
+        while not hw.exists():
+            if lab.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError('the lab did not come up')
+            time.sleep(0.2)
+        time.sleep(3.0)
+        t0 = time.monotonic()
+        r = subprocess.run(
+            [ACTIVESURV, 'hardware', 'measure-delay', '--hardware', str(hw), '--calibration',
+             str(cal), '--yes'],
+            capture_output=True, text=True, timeout=1200,
+        )  # fmt: skip
+        if r.returncode != 0:
+            raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
+        out['delay_measure_s'] = round(time.monotonic() - t0, 1)
+        got = yaml.safe_load((cal / 'delays.yaml').read_text())
+        err = {c: round(1e3 * abs(got[c]['exposure_delay'] - truth[c]), 3) for c in CAMERAS}
+        out['delay_error_ms'] = err
+        out['delay_error_max_ms'] = max(err.values())
+        out['delay_jitter_ms'] = {c: round(1e3 * got[c]['jitter'], 2) for c in CAMERAS}
+        run_dir = tmp / 'A_fast'
+        r = subprocess.run(
+            [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', str(cal),
+             '--set', 'A', '--system', 'fast', '--out', str(run_dir)],
+            capture_output=True, text=True, timeout=900,
+        )  # fmt: skip
+        if r.returncode != 0:
+            raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
+        rows = json.loads((run_dir / 'results.json').read_text())['demands']
+        errors = [x['position_error'] for x in rows if x.get('position_error') is not None]
+        out['delay_setA_fast_ok'] = sum(x['status'] == 'ok' for x in rows)
+        out['delay_setA_fast_k'] = sum(len(x['cameras']) == 3 for x in rows)
+        out['delay_setA_fast_median_error_mm'] = round(1e3 * float(np.median(errors)), 4)
+    finally:
+        lab.send_signal(signal.SIGINT)
+        lab.wait(timeout=60)
+        log.close()
+    return out
+
+
 def run() -> dict[str, object]:
+    out: dict[str, object] = {}
+    if os.environ.get('ACTIVESURV_BENCH_LAB_DELAYS_ONLY') != '1':
+        out.update(_stops())
+    with tempfile.TemporaryDirectory(prefix='bench_lab_') as d:
+        out.update(_delays(Path(d)))
+    return out
+
+
+def _stops() -> dict[str, object]:
     out: dict[str, object] = {}
     every: list[float] = []
     for way in ('stop', 'estop', 'shutdown'):

@@ -230,15 +230,32 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
 
         node = monitor.node
         states: dict[str, Any] = {}
+        first: dict[str, Any] = {}  # each camera's first joint state: has it moved since?
+        taken: set[str] = set()  # cameras the dispatcher already drives (pre-positioning)
         goals = initial_goals(exp)
+        ours = {cid: list(q) for cid, _, q in goals}
         subs, pubs = [], []
+
+        def on_state(cid: str, m: Any) -> None:
+            states[cid] = m
+            first.setdefault(cid, m)
+
+        def on_goal(cid: str, m: Any) -> None:
+            if any(abs(a - b) > 1e-9 for a, b in zip(m.positions, ours[cid], strict=False)):
+                taken.add(cid)
+
         for cid, _, _ in goals:
             subs.append(
                 node.create_subscription(
                     JointState,
                     topics.joint_states(cid),
-                    lambda m, cid=cid: states.__setitem__(cid, m),
+                    lambda m, cid=cid: on_state(cid, m),
                     qos.SENSOR,
+                )
+            )
+            subs.append(
+                node.create_subscription(
+                    StageGoal, topics.goal(cid), lambda m, cid=cid: on_goal(cid, m), qos.GOAL
                 )
             )
             pubs.append(node.create_publisher(StageGoal, topics.goal(cid), qos.GOAL))
@@ -247,13 +264,21 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
             msg.max_velocities = [0.0] * len(q)
             pub.publish(msg)
 
+        def moved(cid: str) -> bool:
+            a, b = first.get(cid), states.get(cid)
+            return a is not None and b is not None and list(a.position) != list(b.position)
+
         def astray() -> list[str]:
-            """The cameras not at their initial pose, each with where it is."""
+            """The cameras not at their initial pose, each with where it is (a camera the
+            dispatcher already drives, and whose controller obeys, is not waited for: the
+            object is in view before run time 0 and its first demand's cameras go there)."""
             out = []
             for cid, names, q in goals:
                 m = states.get(cid)
                 if m is None:
                     out.append(f'{cid} (no joint state)')
+                    continue
+                if cid in taken and moved(cid):
                     continue
                 at = dict(zip(m.name, m.position, strict=False))
                 now = [at.get(n, math.inf) for n in names]

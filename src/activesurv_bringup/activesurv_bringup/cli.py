@@ -311,6 +311,13 @@ def _build_parser() -> argparse.ArgumentParser:
         'says): what activesurv hardware measure-delay must find',
     )
     lab.add_argument(
+        '--trigger',
+        choices=('free', 'software'),
+        default='free',
+        help='the dynamic cameras: free-running, or software-triggered (each exposes when its '
+        '<cam>_camera/trigger service is called; the hardware file says so)',
+    )
+    lab.add_argument(
         '--clock-offset',
         action='append',
         default=[],
@@ -967,6 +974,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             namespace=args.namespace,
             delays=arguments.timings(args.exposure_delay, '--exposure-delay', 0.0, 1.0),
             offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
+            trigger=args.trigger,
         )
     elif args.command == 'stop':
         from activesurv_bringup.rig.hardware import read

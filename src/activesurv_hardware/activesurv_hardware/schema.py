@@ -248,6 +248,21 @@ def cross_problems(hw: HardwareFile) -> list[str]:
     ]
     if hw.overhead.stages is not None:
         found.append('overhead.stages: the static overhead camera has no stages')
+    for cid, cam in [*hw.cameras.items(), ('overhead', hw.overhead)]:
+        if cam.trigger is not Trigger.SOFTWARE:
+            continue
+        if cam.source.device is not None:
+            found.append(
+                f'{"" if cid == "overhead" else "cameras."}{cid}.trigger: software is for a '
+                "driver's topic: source (its trigger_service); use hardware or free here"
+            )
+        elif not cam.trigger_service:
+            found.append(
+                f'{"" if cid == "overhead" else "cameras."}{cid}.trigger_service: missing '
+                "(required with trigger: software: the driver's std_srvs/Trigger service)"
+            )
+        if cid == 'overhead':
+            found.append('overhead.trigger: software: the overhead camera tracks a stream; free')
     controllers: list[tuple[str, ControllerFile]] = [
         (f'cameras.{cid}.stages', cam.stages) for cid, cam in hw.cameras.items() if cam.stages
     ]

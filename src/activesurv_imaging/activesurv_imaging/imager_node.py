@@ -49,6 +49,7 @@ from activesurv_imaging.conversions import (
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.imager_params import PARAMS
 from activesurv_imaging.observation import ObservationStatus
+from activesurv_imaging.ros.software_trigger import SoftwareTrigger
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
 
 
@@ -63,6 +64,8 @@ class ImagerNode(Node):
         self.counts: Counter[str] = Counter()
         self._info_tolerance = float(v['camera_info_tolerance'])
         self._info_checked = False  # a driver's camera_info only compared with the file's
+        service = str(v['trigger_service'])
+        self._trigger = SoftwareTrigger(self, service, v['trigger_lead']) if service else None
 
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
@@ -108,6 +111,8 @@ class ImagerNode(Node):
             n, v = vector3(msg.predicted_normal), vector3(msg.predicted_velocity)
             p = vector3(msg.predicted_position)
             self.core.request(int(msg.demand_index), time_to_sec(msg.demand_instant), n, v, p)
+            if self._trigger is not None:
+                self._trigger.arm(int(msg.demand_index), time_to_sec(msg.demand_instant))
             self._on_tick()
 
     def _on_image(self, msg: Image) -> None:

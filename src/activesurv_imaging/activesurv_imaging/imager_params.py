@@ -40,6 +40,14 @@ PARAMS = (
         'px: a camera_info that disagrees more with camera_info_file is warned about',
         above=0.0,
     ),
+    Param(
+        'trigger_service',
+        '',
+        "trigger software: the driver's std_srvs/Trigger service, called before each instant",
+    ),
+    Param(
+        'trigger_lead', 0.001, 's the trigger service is called before the instant', minimum=0.0
+    ),
     Param('record_frames', False, 'publish the frame of each demand (PNG) on <cam>/demand_frame'),
     # The camera's mount (what a hand-started imager needs: commissioning writes them).
     *(Param(name, default, text) for name, (default, text) in MOUNT_PARAMETERS.items()),

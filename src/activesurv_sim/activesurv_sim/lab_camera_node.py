@@ -25,6 +25,7 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_srvs.srv import Trigger
 
 from activesurv_common.errors import CommonError
 from activesurv_common.ros import diagnostics, qos, topics
@@ -51,6 +52,7 @@ LAB_PARAMS = (
     Param('jitter', 0.002, 'std of the stamp around it (s)', minimum=0.0),
     Param('clock_offset', 0.0, "s the camera's clock is ahead of the host's (in its stamps)"),
     Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
+    Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
 
@@ -98,7 +100,10 @@ class LabCameraNode(Node):
             )
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.rate, self.exposures, self.started = rate, 0, time.monotonic()
-        self.create_timer(1.0 / rate, self._expose, clock=steady)
+        if v['software_trigger']:  # a triggered driver: an exposure per call, as it comes
+            self.create_service(Trigger, '~/trigger', self._on_trigger)
+        else:
+            self.create_timer(1.0 / rate, self._expose, clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
         self.create_timer(10.0, self._say_rate, clock=steady)
 
@@ -119,6 +124,11 @@ class LabCameraNode(Node):
             for sim in (self.sim, self.boards):
                 sim.joints.add(time_to_sec(msg.header.stamp), q)
             self._develop()
+
+    def _on_trigger(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        self._expose()
+        response.success = True
+        return response
 
     def _expose(self) -> None:
         """An exposure now; its frame is made once the controllers have reported past it."""

@@ -165,6 +165,9 @@ def hardware_specs(
                     ).to_parameters(),
                     **mount_parameters(s),
                     'record_frames': record_frames == 'used',
+                    # A software-triggered driver: its Trigger service, called ahead.
+                    'trigger_service': cam.trigger_service if cam.trigger == 'software' else '',
+                    'trigger_lead': cam.trigger_lead,
                     # The commissioned intrinsics, whatever the driver's camera_info says.
                     **(
                         {'camera_info_file': f'{files["calibration"]}/{cid}.yaml'}

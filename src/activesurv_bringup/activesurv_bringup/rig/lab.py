@@ -104,6 +104,7 @@ def camera_controller(sensor: Sensor, port: Path) -> tuple[ZaberEmulator, dict[s
                  'axes': axes}  # fmt: skip
 
 
+TRIGGER_LEAD = 0.001  # s: a software trigger's service call, sent this much ahead
 EXPOSURE_DELAY = 0.02  # s: the lab cameras' exposure and read-out, as the hardware file says
 JITTER = 0.002  # s: std of their stamps around it
 DROP_RATE = 0.01  # frames that never arrive
@@ -139,7 +140,7 @@ def _use(
 
 
 def hardware_document(
-    configs: Mapping[str, dict[str, Any]], rate: float, namespace: str
+    configs: Mapping[str, dict[str, Any]], rate: float, namespace: str, trigger: str = 'free'
 ) -> dict[str, Any]:
     """The lab as a hardware file (:mod:`activesurv_hardware.hardware_file`)."""
     rig = paper_rig('lab', namespace)
@@ -147,12 +148,19 @@ def hardware_document(
     o = rig.object
 
     def camera(cid: str, hz: float) -> dict[str, Any]:
-        return {
+        doc: dict[str, Any] = {
             'source': {'topic': f'{ns}/{cid}/image_raw'},
             'trigger': 'free',
             'frame_rate': hz,
             'exposure_delay': EXPOSURE_DELAY,
         }
+        if trigger == 'software' and cid != 'overhead':
+            doc.update(
+                trigger='software',
+                trigger_service=f'{ns}/{cid}_camera/trigger',
+                trigger_lead=TRIGGER_LEAD,
+            )
+        return doc
 
     return {
         'name': 'lab',
@@ -189,6 +197,7 @@ def lab_specs(
     namespace: str,
     delays: Mapping[str, float] | None = None,
     offsets: Mapping[str, float] | None = None,
+    trigger: str = 'free',
 ) -> list[NodeSpec]:
     """The lab's camera drivers (the overhead one and ``cameras``): free-running on the wall
     clock, best effort, with nominal factory calibrations as their drivers would ship.
@@ -228,6 +237,7 @@ def lab_specs(
     for i, s in enumerate(setup.sensors):
         if s.camera_id in cameras:
             extra = {**lab, 'frame_rate': rate, 'seed': 500 + i, **timing(s.camera_id)}
+            extra['software_trigger'] = trigger == 'software'
             specs.append(camera_spec(s.camera_id, rig_file, factory, extra))
     return [
         replace(s, module='activesurv_sim.lab_camera_node', namespace=namespace) for s in specs
@@ -255,6 +265,7 @@ def run_lab(
     namespace: str = '',
     delays: Mapping[str, float] | None = None,
     offsets: Mapping[str, float] | None = None,
+    trigger: str = 'free',
 ) -> Path:
     """Run the emulated lab until ``stop`` is set, SIGINT or SIGTERM; returns its hardware file.
 
@@ -283,11 +294,13 @@ def run_lab(
     hw_file = out / 'hardware.yaml'
     hw_file.write_text(
         '# activesurv lab: the emulated rig as a hardware file (activesurv lab wrote it)\n'
-        + yaml.safe_dump(hardware_document(configs, frame_rate, namespace), sort_keys=False)
+        + yaml.safe_dump(
+            hardware_document(configs, frame_rate, namespace, trigger), sort_keys=False
+        )
     )
     load_hardware(hw_file)  # what we wrote must read back
     launcher = Launcher(
-        lab_specs(rig_file, setup, chosen, out, frame_rate, namespace, delays, offsets),
+        lab_specs(rig_file, setup, chosen, out, frame_rate, namespace, delays, offsets, trigger),
         workdir=out / 'logs',
         env=dict(os.environ),
     )

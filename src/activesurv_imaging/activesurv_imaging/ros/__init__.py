@@ -1,0 +1,1 @@
+"""ROS-side helpers of the imaging package (they import rclpy and messages)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Point
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -18,6 +19,28 @@ from activesurv_interfaces.msg import (
     SensorAssignment,
     StageGoal,
 )
+
+BRIDGE_STATUS = 'activesurv/stage_bridge/'  # what each stage bridge's diagnostics are named
+
+
+def _level(level: bytes | int) -> int:
+    """A diagnostic level as a number (rclpy gives a byte)."""
+    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+
+
+def stage_faults(msg: DiagnosticArray, namespace: str) -> dict[str, str]:
+    """The stage bridges of this rig (``namespace``) in ``msg``: camera id -> its fault ('' when
+    it reports no error)."""
+    out: dict[str, str] = {}
+    for status in msg.status:
+        if not status.name.startswith(BRIDGE_STATUS):
+            continue
+        values = {kv.key: kv.value for kv in status.values}
+        if values.get('namespace', '/').strip('/') != namespace.strip('/'):
+            continue
+        faulted = _level(status.level) >= _level(DiagnosticStatus.ERROR)
+        out[status.name[len(BRIDGE_STATUS) :]] = status.message if faulted else ''
+    return out
 
 
 def horizon_to_demands(msg: DemandHorizon) -> list[Demand]:

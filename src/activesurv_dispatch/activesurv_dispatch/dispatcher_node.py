@@ -35,6 +35,7 @@ from activesurv_dispatch.conversions import (
     horizon_to_demands,
     plan_markers,
     plan_to_msg,
+    stage_faults,
 )
 from activesurv_dispatch.errors import DispatchError
 from activesurv_dispatch.sensors import load_setup
@@ -100,6 +101,11 @@ class DispatcherNode(Node):
             self.create_subscription(
                 Header, topics.heartbeat(cid), self._beat_callback(cid), qos.SENSOR
             )
+        # Stage bridges' diagnostics: a stall, a lost controller or the e-stop takes the camera
+        # out of dispatching at once.
+        self.create_subscription(
+            diagnostics.DiagnosticArray, topics.DIAGNOSTICS, self._on_diagnostics, qos.DIAGNOSTICS
+        )
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
         self.get_logger().info(
@@ -133,6 +139,10 @@ class DispatcherNode(Node):
         now = self._now()
         stamp = time_to_sec(msg.header.stamp)
         self._publish(self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count, stamp))
+
+    def _on_diagnostics(self, msg: diagnostics.DiagnosticArray) -> None:
+        for cid, fault in stage_faults(msg, self.get_namespace()).items():
+            self._publish(self.session.on_stage_fault(cid, fault, self._now()))
 
     def _on_tick(self) -> None:
         self._publish(self.session.tick(self._now()))

@@ -93,6 +93,7 @@ class Dispatcher:
         self.joint_stamp: dict[str, float] = {}
         self.beat_stamp: dict[str, float] = {}
         self.down: dict[str, str] = {}  # camera -> why it is out of dispatching
+        self.faults: dict[str, str] = {}  # camera -> what its stage controller reports
         self.demands: dict[int, Demand] = {}
         self.horizon: list[Demand] = []
         self.plan: Plan | None = None
@@ -119,6 +120,17 @@ class Dispatcher:
     def on_beat(self, camera_id: str, now: float) -> None:
         """The imager of ``camera_id`` beat at ``now``."""
         self.beat_stamp[camera_id] = now
+
+    def on_stage_fault(self, camera_id: str, fault: str, now: float) -> Outputs:
+        """What the stage controller of ``camera_id`` reports: a fault (a stall, the controller
+        lost, the e-stop) takes the camera out of dispatching; '' (cleared) lets it back."""
+        if camera_id not in self.joint_stamp or self.faults.get(camera_id, '') == fault:
+            return Outputs()
+        if fault:
+            self.faults[camera_id] = fault
+        else:
+            self.faults.pop(camera_id, None)
+        return self._check_alive(now)
 
     def set_horizon(
         self,
@@ -210,7 +222,9 @@ class Dispatcher:
         beats_stalled = self._stalled('imager heartbeat', self.beat_stamp, now, out)
         for cid, stamp in self.joint_stamp.items():
             why = ''
-            if now - stamp > timeout and (cid in self.down or not stages_stalled):
+            if cid in self.faults:
+                why = f'stage fault: {self.faults[cid]}'
+            elif now - stamp > timeout and (cid in self.down or not stages_stalled):
                 why = f'no stage state for {timeout:g} s'
             elif (
                 cid in self.beat_stamp
@@ -220,7 +234,9 @@ class Dispatcher:
                 why = f'no imager heartbeat for {timeout:g} s'
             elif cid not in self.down and (stages_stalled or beats_stalled):
                 continue  # silent with the rest: not judged until the stall is over
-            if why and cid not in self.down:
+            if why and self.down.get(cid) not in (None, why):
+                self.down[cid] = why  # already out: the newer reason
+            elif why and cid not in self.down:
                 self.down[cid] = why
                 self.planner.exclude(cid)
                 self.counts['cameras_lost'] += 1

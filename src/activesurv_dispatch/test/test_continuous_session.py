@@ -114,3 +114,21 @@ def test_a_stage_stall_does_not_hide_an_imager_that_died() -> None:
         d2.on_joints(c, away2[c], 0.55)
     d2.tick(0.6)
     assert not d2.down
+
+
+def test_a_stage_fault_takes_its_camera_out_and_its_clearing_lets_it_back() -> None:
+    d, away = _session()
+    d.set_horizon([_demand(0, 2.0, 0.25), _demand(1, 4.0, 0.27)], 0.0)
+    out = d.on_stage_fault('cam2', 'e-stop raised: goals refused; ready', 0.1)
+    assert 'cam2' in d.planner.excluded
+    assert d.down['cam2'] == 'stage fault: e-stop raised: goals refused; ready'
+    assert any('cam2: stage fault' in text for _, text in out.events)
+    assert d.on_stage_fault('cam2', 'e-stop raised: goals refused; ready', 0.2).events == []
+    for c, q in away.items():  # heard all along: only the fault keeps it out
+        d.on_joints(c, q, 0.3)
+    d.tick(0.3)
+    assert 'cam2' in d.planner.excluded
+    out = d.on_stage_fault('cam2', '', 0.4)
+    assert 'cam2' not in d.planner.excluded
+    assert any('cam2 is back' in text for _, text in out.events)
+    assert d.on_stage_fault('cam9', 'nothing of ours', 0.5).events == []  # unknown camera

@@ -53,7 +53,33 @@ TOPICS = {
     '/marker_observations',
     '/target_estimate',
     '/demand_horizon',
+    '/diagnostics',
 }
+BRIDGE_STATUS = 'activesurv/stage_bridge/'
+
+
+class StageFaults:
+    """A hardware run's stage faults from the bridges' recorded diagnostics: per stage, when
+    a fault began (``why``: the bridge's message) and when it cleared (``why`` '')."""
+
+    def __init__(self) -> None:
+        self.events: list[dict[str, Any]] = []
+        self._now: dict[str, str] = {}
+
+    def hear(self, t: float, msg: Any) -> None:
+        for status in msg.status:
+            if not str(status.name).startswith(BRIDGE_STATUS):
+                continue
+            level = status.level
+            level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+            why = str(status.message) if level >= 2 else ''  # ERROR
+            stage = str(status.name)[len(BRIDGE_STATUS) :]
+            if why != self._now.get(stage, ''):
+                if why and self._now.get(stage):
+                    continue  # still faulted (the message changes with the counters)
+                self._now[stage] = why
+                if t >= 0.0:  # during the run (a bridge reports 'disconnected' until it connects)
+                    self.events.append({'stage': stage, 't': round(float(t), 3), 'why': why})
 
 
 def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
@@ -74,6 +100,7 @@ def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
     estimates: dict[int, tuple[Any, int]] = {}
     predicted = PredictionLog()
     tracked = TrackRecorder()
+    faults = StageFaults()
     for m in read_bag(bag, TOPICS):
         if m.topic == '/demand_horizon':
             made = msg_stamp(m.msg)
@@ -94,6 +121,8 @@ def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
             observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
         elif m.topic == '/target_estimate':
             estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
+        elif m.topic == '/diagnostics':
+            faults.hear(msg_stamp(m.msg) - origin, m.msg)
     if len(truth) == 0 and not truthless and not partial:
         raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
     model = SensorModel.load()
@@ -135,6 +164,8 @@ def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
             # Where the truth comes from: the simulator, or a real table's controller.
             'truth': info.get('truth') if info.get('mode') == 'hardware' else 'simulator',
             **({'hardware': info['hardware']} if 'hardware' in info else {}),
+            # A stage controller's faults (stall, controller lost, e-stop) and when they cleared.
+            **({'stage_faults': faults.events} if faults.events else {}),
             # A run stopped by a signal: how many demands it was to answer.
             **({'demands_planned': len(times)} if len(records) < len(times) else {}),
         },
@@ -370,6 +401,9 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
             f'- Set {d["set"]}, {d["system"]}: faulty cameras {faulty or "none"}; '
             f'demands without an estimate {failed or "none"}' + offsets_line(d)
         )
+        for e in d.get('stage_faults', []):
+            what = f'fault: {e["why"]}' if e['why'] else 'fault cleared'
+            lines.append(f'  - {e["stage"]} at run time {e["t"]:.2f} s: {what}')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines) + '\n')
     (out_dir / 'summary.json').write_text(

@@ -27,10 +27,10 @@ from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
-from activesurv_common.lifetime import StopRequested, StopSignals
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.runner import NodeRunner
+from activesurv_launch.session import GraphSession
 from activesurv_sim.rig import save_rig
 
 if TYPE_CHECKING:
@@ -517,9 +517,6 @@ def _run(
     until: Until,
     before_start: Callable[[Any, Progress], None] | None = None,
 ) -> Path:
-    killed: set[Kill] = set()
-    restarted: set[Kill] = set()
-    kills = opts.kills
     startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
     env = dict(os.environ)
@@ -547,24 +544,12 @@ def _run(
             else None
         )
         launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
-    # SIGINT, SIGTERM and SIGHUP stop the run cleanly (StopRequested once the bag is closed).
-    with StopSignals() as stop:
-        try:
-            launcher.run(specs[:-1])
-            deadline = time.monotonic() + startup_timeout
-            while monitor.missing_nodes():
-                if stop.requested:
-                    raise StopRequested(stop.requested)
-                launcher.check()
-                if time.monotonic() > deadline:
-                    raise NodeDiedError(
-                        f'nodes did not come up in {startup_timeout:.0f} s: '
-                        f'{sorted(monitor.missing_nodes())}'
-                    )
-                monitor.spin(0.2)
-            monitor.spin(1.0)  # let discovery settle (latched topics, subscriptions)
-            if stop.requested:
-                raise StopRequested(stop.requested)
+    # SIGINT, SIGTERM and SIGHUP stop the run cleanly: the graph is drained and stopped, then
+    # StopRequested (the bag is closed by then).
+    try:
+        with GraphSession(
+            launcher, specs[:-1], monitor.missing_nodes, monitor.spin, startup_timeout
+        ) as graph:
             if before_start is not None:
                 before_start(monitor, progress)
             n_nodes = sum(len(s.members) or 1 for s in specs)
@@ -572,60 +557,71 @@ def _run(
                 'the xy table and simulated time' if opts.time_origin is None else specs[-1].name
             )
             progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
-            launcher.run(specs[-1:])
-            cpu0, wall0 = _cpu(launcher), time.monotonic()
-            wall_limit = time.monotonic() + until.wall_limit
-            samples: list[dict[str, Any]] = []
-            next_sample = wall0
-            while not until.done(monitor):
-                if stop.requested:
-                    progress(
-                        f'{stop.requested} at simulated time {monitor.sim_time:.1f} s: stopping '
-                        '(open demands are answered, the bag is closed)'
-                    )
-                    break
-                if time.monotonic() >= next_sample and not opts.compose:
-                    next_sample += RESOURCE_PERIOD
-                    samples.append(_resources(launcher, wall0, monitor.sim_time))
-                if kills:  # RunOptions refuses kills with compose: these are processes
-                    assert isinstance(launcher, Launcher)
-                    _chaos(launcher, kills, killed, restarted, by_name, monitor.sim_time, progress)
-                launcher.check()
-                monitor.spin(0.25)
-                line = until.report(monitor)
-                if line:
-                    progress(line)
-                if time.monotonic() > wall_limit:
-                    raise NodeDiedError(
-                        f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
-                        f'after {until.wall_limit:.0f} s of wall time)'
-                    )
-            # Stop only when the recorder has every request, observation and estimate heard here
-            # (a restarted node is matched late; a lost datagram holds a reliable reader's later
-            # messages until the writer's next heartbeat repairs it).
-            drain = 3.0 if stop.requested else 20.0  # a signalled run exits within 10 s
-            deadline = time.monotonic() + drain
-            while missing := monitor.unrecorded():
-                if time.monotonic() > deadline:
-                    progress(
-                        f'the recorder is missing {missing} after {drain:.0f} s; stopping anyway'
-                    )
-                    break
-                monitor.spin(0.25)
-            monitor.spin(0.5)  # the recorder gets the last messages
-            _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
-            if samples:
-                (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
-        finally:
-            monitor.close()
-            # Stop in reverse start order: the clock first, the recorder last (it closes the bag).
-            # A second signal while stopping is a user in a hurry: the launcher hurries.
-            launcher.stop()
-            if owns_rclpy:
-                rclpy.try_shutdown()
-    if stop.requested:
-        raise StopRequested(stop.requested)
+            graph.raise_if_stopping()
+            graph.start(specs[-1:])
+            _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
+    finally:
+        monitor.close()
+        if owns_rclpy:
+            rclpy.try_shutdown()
     return bag
+
+
+def _watch(
+    graph: GraphSession,
+    launcher: NodeRunner,
+    monitor: Any,
+    until: Until,
+    opts: RunOptions,
+    by_name: dict[str, NodeSpec],
+    progress: Progress,
+    out_dir: Path,
+) -> None:
+    """Run until ``until`` says done (or a signal), chaos and resource samples on the way; then
+    drain the recorder and write ``cpu.json`` (and ``resources.json``)."""
+    killed: set[Kill] = set()
+    restarted: set[Kill] = set()
+    cpu0, wall0 = _cpu(launcher), time.monotonic()
+    wall_limit = time.monotonic() + until.wall_limit
+    samples: list[dict[str, Any]] = []
+    next_sample = wall0
+    while not until.done(monitor):
+        if graph.stopping:
+            progress(
+                f'{graph.stopping} at simulated time {monitor.sim_time:.1f} s: stopping '
+                '(open demands are answered, the bag is closed)'
+            )
+            break
+        if time.monotonic() >= next_sample and not opts.compose:
+            next_sample += RESOURCE_PERIOD
+            samples.append(_resources(launcher, wall0, monitor.sim_time))
+        if opts.kills:  # RunOptions refuses kills with compose: these are processes
+            assert isinstance(launcher, Launcher)
+            _chaos(launcher, opts.kills, killed, restarted, by_name, monitor.sim_time, progress)
+        graph.check()
+        monitor.spin(0.25)
+        line = until.report(monitor)
+        if line:
+            progress(line)
+        if time.monotonic() > wall_limit:
+            raise NodeDiedError(
+                f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
+                f'after {until.wall_limit:.0f} s of wall time)'
+            )
+    # Stop only when the recorder has every request, observation and estimate heard here
+    # (a restarted node is matched late; a lost datagram holds a reliable reader's later
+    # messages until the writer's next heartbeat repairs it).
+    drain = 3.0 if graph.stopping else 20.0  # a signalled run exits within 10 s
+    deadline = time.monotonic() + drain
+    while missing := monitor.unrecorded():
+        if time.monotonic() > deadline:
+            progress(f'the recorder is missing {missing} after {drain:.0f} s; stopping anyway')
+            break
+        monitor.spin(0.25)
+    monitor.spin(0.5)  # the recorder gets the last messages
+    _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
+    if samples:
+        (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
 
 
 RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU

@@ -21,10 +21,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from activesurv_bringup.errors import BagError, NodeDiedError
+from activesurv_bringup.errors import BagError
 from activesurv_bringup.specs import live_view_spec, mount_parameters
 from activesurv_dispatch.sensors import load_setup, setup_from_dict
 from activesurv_launch.launcher import Launcher, NodeSpec
+from activesurv_launch.session import GraphSession
 from activesurv_recording.bagio import (
     offered_qos,
     read_bag,
@@ -175,65 +176,93 @@ def run_replay(
         msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
         clock_pub.publish(msg)
 
+    def spin(seconds: float) -> None:
+        rclpy.spin_once(node, timeout_sec=seconds)
+
+    names = {s.name for s in specs}
+
+    def missing() -> set[str]:
+        return names - {n for n, _ in node.get_node_names_and_namespaces()}
+
     try:
-        launcher.start()
-        deadline = time.monotonic() + 60.0
-        names = {s.name for s in specs}
-        while names - {n for n, _ in node.get_node_names_and_namespaces()}:
-            launcher.check()
-            if time.monotonic() > deadline:
-                raise NodeDiedError('replay nodes did not come up in 60 s')
-            rclpy.spin_once(node, timeout_sec=0.1)
-        # Every subscriber must be matched before the first message: the imagers subscribe
-        # volatile, so a message sent before the match is lost to them (a camera's first
-        # demand then measured with a held, wrong stage state).
-        everyone = [*pubs.items(), ('/clock', clock_pub)]
-
-        def matched() -> bool:
-            for topic, pub in everyone:
-                known = len(node.get_subscriptions_info_by_topic(topic))
-                if known == 0 or pub.get_subscription_count() < known:
-                    return False
-            return True
-
-        deadline = time.monotonic() + 20.0
-        while not matched() and time.monotonic() < deadline:
-            launcher.check()
-            rclpy.spin_once(node, timeout_sec=0.05)
-        settle = time.monotonic() + 0.5
-        while time.monotonic() < settle:  # and the subscribers matched back
-            rclpy.spin_once(node, timeout_sec=0.05)
-        how = 'the recorded QoS' if faithful else 'reliable + transient local QoS'
-        progress(f'replaying {len(messages)} messages into {len(specs)} nodes with {how}')
-        t0_bag = messages[0].t_ns
-        t0_wall = time.monotonic()
-        last_clock = 0
-        for m in messages:
-            due = t0_wall + (m.t_ns - t0_bag) * 1e-9 / rtf
-            while time.monotonic() < due:
-                rclpy.spin_once(node, timeout_sec=max(0.0, min(0.01, due - time.monotonic())))
-            if m.t_ns - last_clock > 10_000_000:
-                clock(m.t_ns)
-                last_clock = m.t_ns
-            if m.topic.endswith('/demand_frame'):
-                topic, image = _as_image(m)
-                pubs[topic].publish(image)
-            else:
-                pubs[m.topic].publish(m.raw)
-        # Keep time running so that the last demands reach their fusion deadlines.
-        end = messages[-1].t_ns + 3_000_000_000
-        t = messages[-1].t_ns
-        while t < end:
-            launcher.check()
-            t += 20_000_000
-            clock(t)
-            rclpy.spin_once(node, timeout_sec=0.02 / rtf)
+        with GraphSession(
+            launcher,
+            specs,
+            missing,
+            spin,
+            settle=0.0,
+            trap_signals=False,  # Ctrl-C ends a replay at once: nothing to finish
+        ) as graph:
+            _play(
+                graph, node, pubs, clock_pub, clock, spin, messages, rtf, progress, faithful,
+                len(specs),
+            )  # fmt: skip
     finally:
         node.destroy_node()
-        launcher.stop()
         if owns:
             rclpy.try_shutdown()
     return new_bag
+
+
+def _play(
+    graph: GraphSession,
+    node: Any,
+    pubs: dict[str, Any],
+    clock_pub: Any,
+    clock: Callable[[int], None],
+    spin: Callable[[float], None],
+    messages: list[Any],
+    rtf: float,
+    progress: Progress,
+    faithful: bool,
+    n_nodes: int,
+) -> None:
+    """Publish the recorded inputs on the bag's clock (``clock(t_ns)`` sets /clock), once
+    every subscriber is matched."""
+    # Every subscriber must be matched before the first message: the imagers subscribe
+    # volatile, so a message sent before the match is lost to them (a camera's first
+    # demand then measured with a held, wrong stage state).
+    everyone = [*pubs.items(), ('/clock', clock_pub)]
+
+    def matched() -> bool:
+        for topic, pub in everyone:
+            known = len(node.get_subscriptions_info_by_topic(topic))
+            if known == 0 or pub.get_subscription_count() < known:
+                return False
+        return True
+
+    deadline = time.monotonic() + 20.0
+    while not matched() and time.monotonic() < deadline:
+        graph.check()
+        spin(0.05)
+    settle = time.monotonic() + 0.5
+    while time.monotonic() < settle:  # and the subscribers matched back
+        spin(0.05)
+    how = 'the recorded QoS' if faithful else 'reliable + transient local QoS'
+    progress(f'replaying {len(messages)} messages into {n_nodes} nodes with {how}')
+    t0_bag = messages[0].t_ns
+    t0_wall = time.monotonic()
+    last_clock = 0
+    for m in messages:
+        due = t0_wall + (m.t_ns - t0_bag) * 1e-9 / rtf
+        while time.monotonic() < due:
+            spin(max(0.0, min(0.01, due - time.monotonic())))
+        if m.t_ns - last_clock > 10_000_000:
+            clock(m.t_ns)
+            last_clock = m.t_ns
+        if m.topic.endswith('/demand_frame'):
+            topic, image = _as_image(m)
+            pubs[topic].publish(image)
+        else:
+            pubs[m.topic].publish(m.raw)
+    # Keep time running so that the last demands reach their fusion deadlines.
+    end = messages[-1].t_ns + 3_000_000_000
+    t = messages[-1].t_ns
+    while t < end:
+        graph.check()
+        t += 20_000_000
+        clock(t)
+        spin(0.02 / rtf)
 
 
 def compare(original: Path, replayed: Path) -> list[dict[str, Any]]:

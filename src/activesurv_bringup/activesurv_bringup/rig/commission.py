@@ -61,6 +61,7 @@ from activesurv_imaging.commissioning import (
 )
 from activesurv_imaging.errors import CalibrationError
 from activesurv_launch.launcher import Launcher, NodeSpec
+from activesurv_launch.session import GraphSession
 from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
@@ -191,6 +192,10 @@ class Commissioner:
 
     def now(self) -> float:
         return float(self.node.get_clock().now().nanoseconds) * 1e-9
+
+    def spin_for(self, seconds: float) -> None:
+        """Handle what comes for ``seconds``."""
+        self.spin_until(lambda: False, seconds)
 
     def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
         import rclpy  # the Commissioner's own (see __init__)
@@ -596,65 +601,81 @@ def run_commission(
     work = out / 'work'
     nominal_cal = nominal(layout).truth()
     nominal_cal.save(work / 'factory')  # what the camera drivers are shipped with
-    launcher = None
+    specs: list[NodeSpec] = []
     if rig is not None:
         save_rig(rig, work / 'rig.yaml')
         specs = commission_specs(work / 'rig.yaml', setup, work / 'factory')
-        launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
     topics_of: dict[str, tuple[str, str]] = {}
     if hardware is not None:
         home = home or hardware.home
         specs, topics_of = hardware_commission_specs(hardware, chosen, work, home)
-        launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
+    launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))  # none: --live
     owns = not rclpy.ok()
     if owns:
         rclpy.init()
     ns = hardware.namespace if hardware is not None else ''
     com = Commissioner(setup, chosen, image_topics=topics_of, namespace=ns)
     started = time.monotonic()
+    stages = [TABLE_ID, *chosen]
     try:
-        if launcher is not None:
-            launcher.start()
-        stages = [TABLE_ID, *chosen]
-        up = com.spin_until(
-            lambda: (
-                all(s in com.states for s in stages) and (launcher is None or _check(launcher))
-            ),
+        with GraphSession(
+            launcher,
+            specs,
+            lambda: {f'{s} (no joint states)' for s in stages if s not in com.states},
+            com.spin_for,
             startup_timeout,
-        )
-        if not up:
-            missing = sorted(set(stages) - set(com.states))
-            raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
-        progress(f'stages up: {stages}')
-        # The boards the hardware file names (validated there); the simulator's otherwise.
-        fixture = hardware.geometry.board if hardware is not None else BoardFixture()
-        cal, report = commission_all(
-            lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
-            com.look_overhead(fixture),
-            [s.camera_id for s in setup.sensors],
-            chosen,
-            rig,
-            progress,
-            str(out),
-            stations,
-            layout,
-            fixture,
-        )
-        report['board'] = {
-            'squares': list(fixture.squares),
-            'square_size': fixture.square_size,
-            'top_squares': list(fixture.top_squares),
-            'top_square_size': fixture.top_square_size,
-        }
-        report['seconds'] = round(time.monotonic() - started, 1)
-        write_calibration(out, cal, report)
-        return report
+            settle=0.0,
+            trap_signals=False,  # Ctrl-C ends commissioning (its partial work is kept aside)
+        ):
+            return _commission(
+                com, setup, chosen, rig, hardware, nominal_cal, progress, out, stations, layout,
+                started,
+            )  # fmt: skip
     finally:
         com.close()
-        if launcher is not None:
-            launcher.stop()
         if owns:
             rclpy.try_shutdown()
+
+
+def _commission(
+    com: Commissioner,
+    setup: Setup,
+    chosen: Sequence[str],
+    rig: Rig | None,
+    hardware: Hardware | None,
+    nominal_cal: Calibration,
+    progress: Progress,
+    out: Path,
+    stations: int | None,
+    layout: Path | None,
+    started: float,
+) -> dict[str, Any]:
+    """The procedure, once every stage answers; writes the calibration, returns its report."""
+    stages = [TABLE_ID, *chosen]
+    progress(f'stages up: {stages}')
+    # The boards the hardware file names (validated there); the simulator's otherwise.
+    fixture = hardware.geometry.board if hardware is not None else BoardFixture()
+    cal, report = commission_all(
+        lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
+        com.look_overhead(fixture),
+        [s.camera_id for s in setup.sensors],
+        chosen,
+        rig,
+        progress,
+        str(out),
+        stations,
+        layout,
+        fixture,
+    )
+    report['board'] = {
+        'squares': list(fixture.squares),
+        'square_size': fixture.square_size,
+        'top_squares': list(fixture.top_squares),
+        'top_square_size': fixture.top_square_size,
+    }
+    report['seconds'] = round(time.monotonic() - started, 1)
+    write_calibration(out, cal, report)
+    return report
 
 
 def hardware_commission_specs(
@@ -686,8 +707,3 @@ def hardware_commission_specs(
     if hw.namespace:
         specs = [replace(s, namespace=hw.namespace) for s in specs]
     return specs, topics_of
-
-
-def _check(launcher: Launcher) -> bool:
-    launcher.check()  # raises NodeDiedError if a process died
-    return True

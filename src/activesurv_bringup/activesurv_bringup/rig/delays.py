@@ -40,6 +40,7 @@ from activesurv_hardware.delays import plan_sweep, write_delays
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import find_corners
 from activesurv_launch.launcher import Launcher
+from activesurv_launch.session import GraphSession
 from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
@@ -186,30 +187,34 @@ def run_measure_delay(
     com = Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace)
     rec = _Recorder(com, topics_of)
     fits: dict[str, DelayFit] = {}
+    stages = [TABLE_ID, *dynamic]
     try:
-        launcher.start()
-        stages = [TABLE_ID, *dynamic]
-        if not com.spin_until(lambda: all(s in com.states for s in stages), startup_timeout):
-            missing = sorted(set(stages) - set(com.states))
-            raise NodeDiedError(f'no joint states from {missing} in {startup_timeout:.0f} s')
-        for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
-            started = time.monotonic()
-            if cid != 'overhead':
-                names = list(setup.sensor(cid).joint_names)
-                com.move(cid, names, joints[cid], tol=2e-4)
-            squares = fixture.top_squares if cid == 'overhead' else fixture.squares
-            fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
-            fits[cid] = fit
-            progress(
-                f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter {1e3 * fit.jitter:.1f} '
-                f'ms from {fit.samples} frames (fit {fit.rms_px:.2f} px rms, '
-                f'{time.monotonic() - started:.0f} s)'
-            )
+        with GraphSession(
+            launcher,
+            specs,
+            lambda: {f'{s} (no joint states)' for s in stages if s not in com.states},
+            com.spin_for,
+            startup_timeout,
+            settle=0.0,
+            trap_signals=False,  # Ctrl-C ends it at once (the bridges stop their axes)
+        ):
+            for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
+                started = time.monotonic()
+                if cid != 'overhead':
+                    names = list(setup.sensor(cid).joint_names)
+                    com.move(cid, names, joints[cid], tol=2e-4)
+                squares = fixture.top_squares if cid == 'overhead' else fixture.squares
+                fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
+                fits[cid] = fit
+                progress(
+                    f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter '
+                    f'{1e3 * fit.jitter:.1f} ms from {fit.samples} frames (fit '
+                    f'{fit.rms_px:.2f} px rms, {time.monotonic() - started:.0f} s)'
+                )
         path = write_delays(cal_dir, fits)
         progress(f'written: {path} (hardware runs with this calibration use it)')
         return fits
     finally:
         com.close()
-        launcher.stop()
         if owns:
             rclpy.try_shutdown()

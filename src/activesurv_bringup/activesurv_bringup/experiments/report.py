@@ -41,6 +41,7 @@ from activesurv_bringup.experiments.records import (
 from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
+from activesurv_hardware.stage_faults import StageFaults
 from activesurv_liveview.demand_frames import failed_demand_frames
 from activesurv_liveview.scene import plot_scene
 from activesurv_recording.bagio import read_bag, run_info
@@ -55,31 +56,6 @@ TOPICS = {
     '/demand_horizon',
     '/diagnostics',
 }
-BRIDGE_STATUS = 'activesurv/stage_bridge/'
-
-
-class StageFaults:
-    """A hardware run's stage faults from the bridges' recorded diagnostics: per stage, when
-    a fault began (``why``: the bridge's message) and when it cleared (``why`` '')."""
-
-    def __init__(self) -> None:
-        self.events: list[dict[str, Any]] = []
-        self._now: dict[str, str] = {}
-
-    def hear(self, t: float, msg: Any) -> None:
-        for status in msg.status:
-            if not str(status.name).startswith(BRIDGE_STATUS):
-                continue
-            level = status.level
-            level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
-            why = str(status.message) if level >= 2 else ''  # ERROR
-            stage = str(status.name)[len(BRIDGE_STATUS) :]
-            if why != self._now.get(stage, ''):
-                if why and self._now.get(stage):
-                    continue  # still faulted (the message changes with the counters)
-                self._now[stage] = why
-                if t >= 0.0:  # during the run (a bridge reports 'disconnected' until it connects)
-                    self.events.append({'stage': stage, 't': round(float(t), 3), 'why': why})
 
 
 def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:

@@ -70,7 +70,8 @@ def summarise(run_dir: Path, seconds: float) -> dict[str, object]:
 
 def run() -> dict[str, object]:
     from activesurv_bringup.experiments.options import RunOptions
-    from activesurv_bringup.experiments.surveil import SurveilOptions, run_surveil
+    from activesurv_bringup.experiments.session_options import SurveilOptions
+    from activesurv_bringup.experiments.surveil import run_surveil
 
     out: dict[str, object] = {'load_average_1min': round(os.getloadavg()[0], 2)}
     with tempfile.TemporaryDirectory() as name:

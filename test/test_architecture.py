@@ -285,3 +285,35 @@ def _under_type_checking(tree: ast.Module, node: ast.AST) -> bool:
         ):
             return True
     return False
+
+
+def _only_forwards(tree: ast.Module) -> bool:
+    """A module whose body is imports (and a docstring, ``__all__``) only: it forwards names."""
+    body = [
+        n
+        for n in tree.body
+        if not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))
+        and not (isinstance(n, ast.ImportFrom) and n.module == '__future__')
+    ]
+    imports_ = [n for n in body if isinstance(n, (ast.Import, ast.ImportFrom))]
+    rest = [
+        n
+        for n in body
+        if n not in imports_
+        and not (
+            isinstance(n, ast.Assign)
+            and all(isinstance(t, ast.Name) and t.id == '__all__' for t in n.targets)
+        )
+    ]
+    return bool(imports_) and not rest
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_no_module_only_forwards_names(package: str) -> None:
+    """When a module moves, its users move with it: no module is left that only re-exports."""
+    bad = [
+        str(p.relative_to(SRC))
+        for p in modules(package)
+        if _only_forwards(ast.parse(p.read_text(), str(p)))
+    ]
+    assert not bad, f'modules that only forward names: {bad}'

@@ -622,7 +622,8 @@ def _scene(
     """A named set of our own (``C``): its scripted objects and obstacles, run as a short
     surveillance session on the run's rig (the same graph, results and report)."""
     from activesurv_bringup.experiments.scenes import load_scene
-    from activesurv_bringup.experiments.surveil import SurveilOptions, run_surveil, session_table
+    from activesurv_bringup.experiments.session_options import SurveilOptions
+    from activesurv_bringup.experiments.surveil import run_surveil, session_table
 
     scene = load_scene(set_name)
     session = SurveilOptions(
@@ -908,7 +909,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             not args.no_motion_correction,
         )
     elif args.command == 'surveil':
-        from activesurv_bringup.experiments.surveil import SurveilOptions, parse_demand_at
+        from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
         from activesurv_bringup.rig.choice import choose
 
         new_output_dir(args.out)  # refused before anything is commissioned

@@ -195,7 +195,7 @@ def results_document(
     tracking: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """An experiment's results; ``tracking``: the overhead tracks' figures
-    (:func:`activesurv_bringup.experiments.tracking.track_metrics`)."""
+    (:func:`activesurv_studies.tracking.track_metrics`)."""
     doc: dict[str, Any] = {
         'set': set_name,
         'system': system,

@@ -21,10 +21,7 @@ import yaml
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import Fault, imager_injection
-from activesurv_bringup.files import DDS_PROFILES as DDS_PROFILES  # re-exported
 from activesurv_bringup.files import cache_dir, config_path
-from activesurv_bringup.files import config_file as config_file  # re-exported
-from activesurv_bringup.files import dds_profile_path as dds_profile_path  # re-exported
 from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.camera_model import CameraModel, overhead_camera
 from activesurv_common.geometry import Transform, matrix_from_quaternion

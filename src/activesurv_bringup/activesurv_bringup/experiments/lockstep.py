@@ -87,7 +87,7 @@ def run_lockstep(
         progress: called as ``progress(demand_number, demands, sim_time)`` after each demand.
         plan_log: if given, receives (demand index, assigned cameras) of every capture.
         track_log: if given, receives the overhead tracks and the truth at every frame
-            (:func:`activesurv_bringup.experiments.tracking.track_metrics`).
+            (:func:`activesurv_studies.tracking.track_metrics`).
     """
     rng = np.random.default_rng(exp.seed)
     noise = SensorNoise()

@@ -16,7 +16,6 @@ from pathlib import Path
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import Fault, Kill
-from activesurv_bringup.files import new_output_dir, timestamped_dir  # re-exported
 from activesurv_launch.launcher import NodeSpec
 
 HOSTS = ('single', 'netns')
@@ -130,7 +129,5 @@ __all__ = [
     'HOSTS',
     'PROCESSES',
     'RunOptions',
-    'new_output_dir',
     'scoped_environ',
-    'timestamped_dir',
 ]

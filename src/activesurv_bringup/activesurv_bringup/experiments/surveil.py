@@ -37,12 +37,11 @@ from activesurv_bringup.experiments.records import (
     msg_vector,
     run_obstacles,
 )
-from activesurv_bringup.experiments.session_options import (  # (their earlier path)
-    DEMAND_REGION as DEMAND_REGION,
+from activesurv_bringup.experiments.session_options import (
+    DEMAND_REGION,
+    FIRST_ENTRY,
+    SurveilOptions,
 )
-from activesurv_bringup.experiments.session_options import FIRST_ENTRY as FIRST_ENTRY
-from activesurv_bringup.experiments.session_options import SurveilOptions as SurveilOptions
-from activesurv_bringup.experiments.session_options import parse_demand_at as parse_demand_at
 from activesurv_common.lifetime import StopRequested
 from activesurv_common.occlusion import obstacles_to_list, plate_box
 from activesurv_common.sensor_model import SensorModel

@@ -18,6 +18,7 @@ frames' |exposure - instant| median and max (goal: <= 2 ms median), demands ok, 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -26,7 +27,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -140,31 +141,44 @@ def _sigterm(tmp: Path) -> float:
             rclpy.try_shutdown()
 
 
-def _delays(tmp: Path) -> dict[str, object]:
-    """measure-delay against unknown delays, then Set A fast with what it measured."""
+@contextlib.contextmanager
+def _lab(tmp: Path, *flags: str) -> Iterator[Path]:
+    """``activesurv lab`` on the nominal rig with ``flags``; its hardware file once it is up."""
     from activesurv_bringup.rig.rigs import nominal
     from activesurv_sim.rig import save_rig
 
+    rig, lab_dir = tmp / 'rig.yaml', tmp / 'lab'
+    save_rig(nominal(), rig)
+    with (tmp / 'lab.log').open('w') as log:
+        lab = subprocess.Popen(
+            [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(lab_dir), *flags],
+            stdout=log, stderr=subprocess.STDOUT, text=True,
+        )  # fmt: skip
+        try:
+            hw = lab_dir / 'hardware.yaml'
+            deadline = time.monotonic() + 60
+            while not hw.exists():
+                if lab.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError('the lab did not come up')
+                time.sleep(0.2)
+            time.sleep(3.0)
+            yield hw
+        finally:
+            lab.send_signal(signal.SIGINT)
+            lab.wait(timeout=60)
+
+
+def _delays(tmp: Path) -> dict[str, object]:
+    """measure-delay against unknown delays, then Set A fast with what it measured."""
+    from activesurv_bringup.rig.rigs import nominal
+
     rng = np.random.default_rng(36)
     truth = {c: round(float(rng.uniform(0.005, 0.060)), 4) for c in CAMERAS}
-    rig, cal, lab_dir = tmp / 'rig.yaml', tmp / 'cal', tmp / 'lab'
-    save_rig(nominal(), rig)
+    cal = tmp / 'cal'
     nominal().truth().save(cal)  # the lab's rig is the nominal one: its exact calibration
     flags = [a for c, d in truth.items() for a in ('--exposure-delay', f'{c}={d}')]
-    log = (tmp / 'lab.log').open('w')
-    lab = subprocess.Popen(
-        [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(lab_dir), *flags],
-        stdout=log, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
     out: dict[str, object] = {'delay_truth_ms': {c: 1e3 * d for c, d in truth.items()}}
-    try:
-        hw = lab_dir / 'hardware.yaml'
-        deadline = time.monotonic() + 60
-        while not hw.exists():
-            if lab.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError('the lab did not come up')
-            time.sleep(0.2)
-        time.sleep(3.0)
+    with _lab(tmp, *flags) as hw:
         t0 = time.monotonic()
         r = subprocess.run(
             [ACTIVESURV, 'hardware', 'measure-delay', '--hardware', str(hw), '--calibration',
@@ -179,57 +193,29 @@ def _delays(tmp: Path) -> dict[str, object]:
         out['delay_error_ms'] = err
         out['delay_error_max_ms'] = max(err.values())
         out['delay_jitter_ms'] = {c: round(1e3 * got[c]['jitter'], 2) for c in CAMERAS}
-        run_dir = tmp / 'A_fast'
-        r = subprocess.run(
-            [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', str(cal),
-             '--set', 'A', '--system', 'fast', '--out', str(run_dir)],
-            capture_output=True, text=True, timeout=900,
-        )  # fmt: skip
-        if r.returncode != 0:
-            raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
-        rows = json.loads((run_dir / 'results.json').read_text())['demands']
-        errors = [x['position_error'] for x in rows if x.get('position_error') is not None]
-        out['delay_setA_fast_ok'] = sum(x['status'] == 'ok' for x in rows)
-        out['delay_setA_fast_k'] = sum(len(x['cameras']) == 3 for x in rows)
-        out['delay_setA_fast_median_error_mm'] = round(1e3 * float(np.median(errors)), 4)
-    finally:
-        lab.send_signal(signal.SIGINT)
-        lab.wait(timeout=60)
-        log.close()
+        rows = _set_a_fast(hw, tmp / 'A_fast', str(cal))
+    errors = [x['position_error'] for x in rows if x.get('position_error') is not None]
+    out['delay_setA_fast_ok'] = sum(x['status'] == 'ok' for x in rows)
+    out['delay_setA_fast_k'] = sum(len(x['cameras']) == 3 for x in rows)
+    out['delay_setA_fast_median_error_mm'] = round(1e3 * float(np.median(errors)), 4)
     return out
 
 
-def _software_trigger(tmp: Path) -> dict[str, object]:
-    from activesurv_bringup.rig.rigs import nominal
-    from activesurv_sim.rig import save_rig
-
-    rig, lab_dir, run_dir = tmp / 'rig.yaml', tmp / 'lab', tmp / 'A_fast'
-    save_rig(nominal(), rig)
-    log = (tmp / 'lab.log').open('w')
-    lab = subprocess.Popen(
-        [ACTIVESURV, 'lab', '--rig', str(rig), '--out', str(lab_dir), '--trigger', 'software'],
-        stdout=log, stderr=subprocess.STDOUT, text=True,
+def _set_a_fast(hw: Path, run_dir: Path, calibration: str) -> list[dict[str, Any]]:
+    """Set A fast on the lab's rig; its demands' rows."""
+    r = subprocess.run(
+        [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration', calibration,
+         '--set', 'A', '--system', 'fast', '--out', str(run_dir)],
+        capture_output=True, text=True, timeout=900,
     )  # fmt: skip
-    try:
-        hw = lab_dir / 'hardware.yaml'
-        deadline = time.monotonic() + 60
-        while not hw.exists():
-            if lab.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError('the lab did not come up')
-            time.sleep(0.2)
-        time.sleep(3.0)
-        r = subprocess.run(
-            [ACTIVESURV, 'experiment', '--hardware', str(hw), '--yes', '--calibration',
-             'nominal', '--set', 'A', '--system', 'fast', '--out', str(run_dir)],
-            capture_output=True, text=True, timeout=900,
-        )  # fmt: skip
-        if r.returncode != 0:
-            raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
-    finally:
-        lab.send_signal(signal.SIGINT)
-        lab.wait(timeout=60)
-        log.close()
-    rows = json.loads((run_dir / 'results.json').read_text())['demands']
+    if r.returncode != 0:
+        raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
+    return list(json.loads((run_dir / 'results.json').read_text())['demands'])
+
+
+def _software_trigger(tmp: Path) -> dict[str, object]:
+    with _lab(tmp, '--trigger', 'software') as hw:
+        rows = _set_a_fast(hw, tmp / 'A_fast', 'nominal')
     offsets = [abs(v) for x in rows for v in x['frame_offsets'].values()]
     errors = [x['position_error'] for x in rows if x.get('position_error') is not None]
     return {

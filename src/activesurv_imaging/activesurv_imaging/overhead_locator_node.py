@@ -25,6 +25,7 @@ from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
+from activesurv_imaging.conversions import info_disagreement
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.overhead import load_extrinsics, overhead_fix, overhead_fixes
 
@@ -46,6 +47,11 @@ PARAMS = (
     Param('marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
     Param('frame_id', 'world', 'frame of the fixes'),
     Param('all_markers', False, 'several objects: every marker of a frame on overhead/fixes'),
+    Param(
+        'camera_info_file',
+        '',
+        'commissioned intrinsics (camera_calibration YAML), used over the camera_info topic',
+    ),
 )
 
 
@@ -65,6 +71,9 @@ class OverheadLocatorNode(Node):
         self.marker_radius = float(v['marker_radius'])
         self.frame_id = str(v['frame_id'])
         self.camera: CameraModel | None = None
+        self._from_file = bool(v['camera_info_file'])
+        if self._from_file:  # a driver's camera_info is then only compared with it
+            self.camera = CameraModel.load(str(v['camera_info_file']))
         self.counts: Counter[str] = Counter()
         self.last_reason = ''
         self._fix_pub = self.create_publisher(PointStamped, topics.OVERHEAD_FIX, qos.STATE)
@@ -85,6 +94,11 @@ class OverheadLocatorNode(Node):
 
     def _on_info(self, msg: CameraInfo) -> None:
         if self.camera is not None:
+            if self._from_file and not self.counts['camera_info_compared']:
+                self.counts['camera_info_compared'] += 1
+                why = info_disagreement(self.camera, msg, self.camera_id, 2.0)
+                if why:
+                    self.get_logger().warning(why)
             return
         try:
             self.camera = model_from_camera_info(msg, self.camera_id)

@@ -144,7 +144,12 @@ def hardware_specs(
     ]
     sources, remap = source_specs(hw.overhead, files['calibration'])
     specs += sources
-    specs.append(locator_spec(exp, wall, over, hw.geometry.top_marker_radius, remap))
+    locator = locator_spec(exp, wall, over, hw.geometry.top_marker_radius, remap)
+    if hw.overhead.source.kind == 'topic':  # the commissioned intrinsics, not the driver's
+        intrinsics = Path(files['calibration'], 'overhead.yaml')
+        parameters = {**locator.parameters, 'camera_info_file': str(intrinsics)}
+        locator = replace(locator, parameters=parameters) if intrinsics.is_file() else locator
+    specs.append(locator)
     believed = {'setup_file': files['setup_file']}
     times = [origin + float(t) for t in exp.demand_times]
     specs += core_specs(exp, wall, believed, over, times, bag.parent / 'logs')

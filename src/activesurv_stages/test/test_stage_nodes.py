@@ -28,6 +28,24 @@ def _goal(joints: list[str], positions: list[float], velocities: list[float] | N
     )
 
 
+def _zaber_config(tmp_path: Path, rotary: bool) -> None:
+    """``tmp_path/zaber.yaml``: cam1's stages (1 um, 1 urad per microstep) on the emulator at
+    ``tmp_path/ttyZ``; its linear axis alone unless ``rotary``."""
+    axes = [
+        {'joint': 'cam1_x', 'axis': '1', 'kind': 'linear', 'si_per_unit': 1e-6,
+         'offset': -0.15, 'min': -0.15, 'max': 0.15, 'max_velocity': 0.05,
+         'max_acceleration': 0.5},
+        {'joint': 'cam1_yaw', 'axis': '2', 'kind': 'rotary', 'si_per_unit': 1e-6,
+         'offset': -1.5, 'min': -1.5, 'max': 1.5, 'max_velocity': 0.2,
+         'max_acceleration': 0.8},
+    ]  # fmt: skip
+    cfg = {
+        'controller': {'protocol': 'zaber', 'port': str(tmp_path / 'ttyZ'), 'poll_rate': 50.0},
+        'axes': axes if rotary else axes[:1],
+    }
+    (tmp_path / 'zaber.yaml').write_text(yaml.safe_dump(cfg))
+
+
 def test_sim_stage_stream_respects_limits(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
@@ -174,34 +192,7 @@ def test_stage_bridge_node_against_emulator(
             ZaberDeviceSpec(2, (0, 3_000_000), 3e6, 3e7),
         ],
     )
-    cfg = {
-        'controller': {'protocol': 'zaber', 'port': str(tmp_path / 'ttyZ'), 'poll_rate': 50.0},
-        'axes': [
-            {
-                'joint': 'cam1_x',
-                'axis': '1',
-                'kind': 'linear',
-                'si_per_unit': 1e-6,
-                'offset': -0.15,
-                'min': -0.15,
-                'max': 0.15,
-                'max_velocity': 0.05,
-                'max_acceleration': 0.5,
-            },
-            {
-                'joint': 'cam1_yaw',
-                'axis': '2',
-                'kind': 'rotary',
-                'si_per_unit': 1e-6,
-                'offset': -1.5,
-                'min': -1.5,
-                'max': 1.5,
-                'max_velocity': 0.2,
-                'max_acceleration': 0.8,
-            },
-        ],
-    }
-    (tmp_path / 'zaber.yaml').write_text(yaml.safe_dump(cfg))
+    _zaber_config(tmp_path, rotary=True)
     bridge = StageBridgeNode(
         parameter_overrides=[
             Parameter('config_file', value=str(tmp_path / 'zaber.yaml')),
@@ -265,23 +256,7 @@ def test_stage_bridge_stop_service_and_estop(
     from activesurv_interfaces.msg import StageGoal
 
     emu = ZaberEmulator(tmp_path / 'ttyZ', [ZaberDeviceSpec(1, (0, 300_000), 300_000, 3e6)])
-    cfg = {
-        'controller': {'protocol': 'zaber', 'port': str(tmp_path / 'ttyZ'), 'poll_rate': 50.0},
-        'axes': [
-            {
-                'joint': 'cam1_x',
-                'axis': '1',
-                'kind': 'linear',
-                'si_per_unit': 1e-6,
-                'offset': -0.15,
-                'min': -0.15,
-                'max': 0.15,
-                'max_velocity': 0.05,
-                'max_acceleration': 0.5,
-            }
-        ],
-    }
-    (tmp_path / 'zaber.yaml').write_text(yaml.safe_dump(cfg))
+    _zaber_config(tmp_path, rotary=False)
     bridge = StageBridgeNode(
         parameter_overrides=[
             Parameter('config_file', value=str(tmp_path / 'zaber.yaml')),

@@ -193,6 +193,22 @@ class Commissioner:
     def now(self) -> float:
         return float(self.node.get_clock().now().nanoseconds) * 1e-9
 
+    def hold(
+        self, runner: Launcher, specs: Sequence[NodeSpec], startup_timeout: float
+    ) -> GraphSession:
+        """The graph this commissioner drives: up once every stage's joint states are heard;
+        Ctrl-C unwinds it at once (nothing to finish), the nodes stopped all the same."""
+        stages = list(self.goal_pubs)
+        return GraphSession(
+            runner,
+            specs,
+            lambda: {f'{s} (no joint states)' for s in stages if s not in self.states},
+            self.spin_for,
+            startup_timeout,
+            settle=0.0,
+            trap_signals=False,
+        )
+
     def spin_for(self, seconds: float) -> None:
         """Handle what comes for ``seconds``."""
         self.spin_until(lambda: False, seconds)
@@ -616,17 +632,8 @@ def run_commission(
     ns = hardware.namespace if hardware is not None else ''
     com = Commissioner(setup, chosen, image_topics=topics_of, namespace=ns)
     started = time.monotonic()
-    stages = [TABLE_ID, *chosen]
     try:
-        with GraphSession(
-            launcher,
-            specs,
-            lambda: {f'{s} (no joint states)' for s in stages if s not in com.states},
-            com.spin_for,
-            startup_timeout,
-            settle=0.0,
-            trap_signals=False,  # Ctrl-C ends commissioning (its partial work is kept aside)
-        ):
+        with com.hold(launcher, specs, startup_timeout):
             return _commission(
                 com, setup, chosen, rig, hardware, nominal_cal, progress, out, stations, layout,
                 started,

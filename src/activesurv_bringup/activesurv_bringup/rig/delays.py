@@ -40,7 +40,6 @@ from activesurv_hardware.delays import plan_sweep, write_delays
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import find_corners
 from activesurv_launch.launcher import Launcher
-from activesurv_launch.session import GraphSession
 from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
@@ -187,17 +186,8 @@ def run_measure_delay(
     com = Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace)
     rec = _Recorder(com, topics_of)
     fits: dict[str, DelayFit] = {}
-    stages = [TABLE_ID, *dynamic]
     try:
-        with GraphSession(
-            launcher,
-            specs,
-            lambda: {f'{s} (no joint states)' for s in stages if s not in com.states},
-            com.spin_for,
-            startup_timeout,
-            settle=0.0,
-            trap_signals=False,  # Ctrl-C ends it at once (the bridges stop their axes)
-        ):
+        with com.hold(launcher, specs, startup_timeout):  # Ctrl-C: the bridges stop their axes
             for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
                 started = time.monotonic()
                 if cid != 'overhead':

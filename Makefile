@@ -10,7 +10,7 @@ STAMPS := $(VENV)/.stamps
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
 PKGS := activesurv_common activesurv_launch activesurv_recording activesurv_liveview \
-        activesurv_hardware activesurv_studies activesurv_sim activesurv_imaging activesurv_prediction \
+        activesurv_hardware activesurv_evaluation activesurv_studies activesurv_sim activesurv_imaging activesurv_prediction \
         activesurv_dispatch activesurv_fusion activesurv_stages activesurv_bringup
 IFACE_SRC := $(wildcard src/activesurv_interfaces/msg/*.msg) \
              src/activesurv_interfaces/CMakeLists.txt src/activesurv_interfaces/package.xml \

@@ -102,17 +102,17 @@ def spin_until(rclpy_context: Any) -> Callable[..., bool]:
 
 @pytest.fixture(scope='session')
 def wait_for_file() -> Callable[..., bool]:
-    """Wait until a process (``activesurv lab``) has written a file; False if it died first."""
+    """Wait until ``activesurv lab`` has written its hardware file ``path`` and reported ready
+    (every camera streams: ``ready`` beside the file); False if it died first."""
     import subprocess
     import time
 
     def wait(path: Path, proc: subprocess.Popen[str], timeout: float = 60.0) -> bool:
         deadline = time.monotonic() + timeout
-        while not path.exists():
+        while not (path.exists() and (path.parent / 'ready').exists()):
             if proc.poll() is not None or time.monotonic() > deadline:
                 return False
-            time.sleep(0.2)
-        time.sleep(2.0)  # the lab reports ready once its camera drivers are up
+            time.sleep(0.1)
         return True
 
     return wait

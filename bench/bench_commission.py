@@ -16,9 +16,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from activesurv_bringup.experiments.evaluation import summary
 from activesurv_bringup.rig.commission import commission_offline
 from activesurv_bringup.rig.rigs import RigChoice, nominal, resolve_calibration
+from activesurv_evaluation.results import summary
 from activesurv_sim.rig import Rig, perturb_rig
 
 
@@ -98,9 +98,9 @@ def ideal_rig(rig: Rig) -> Rig:
 
 
 def _lockstep(out: Path, seed: int, choice: RigChoice) -> dict[str, Any]:
-    from activesurv_bringup.experiments.evaluation import results_document
     from activesurv_bringup.experiments.experiment import load_experiment
     from activesurv_bringup.experiments.lockstep import run_lockstep
+    from activesurv_evaluation.results import results_document
 
     exp = load_experiment('A', 'fast', seed, rig=choice)
     return results_document('A', 'fast', run_lockstep(exp), {'seed': seed})

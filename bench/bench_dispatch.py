@@ -18,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiments.evaluation import results_document
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.lockstep import run_lockstep
 from activesurv_common.mount import CameraMount
@@ -27,6 +26,7 @@ from activesurv_dispatch.best_pose import Target, camera_frames, ideal_pose, vie
 from activesurv_dispatch.planner import Demand, DispatchPlanner
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_dispatch.visibility import fused_visibility
+from activesurv_evaluation.results import results_document
 
 MODEL = SensorModel.load()
 COV = np.diag([4e-6, 4e-6, 2.5e-7, 1e-4, 1e-4, 1e-4])

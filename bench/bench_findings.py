@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiments.evaluation import recovery_demand
+from activesurv_evaluation.results import recovery_demand
 
 SYSTEMS = ('static', 'medium', 'fast')
 

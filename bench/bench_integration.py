@@ -23,16 +23,16 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiments.evaluation import recovery_demand
+from activesurv_evaluation.results import recovery_demand
 
 SEEDS = 20
 SYSTEMS = ('static', 'medium', 'fast')
 
 
 def _one(args: tuple[str, str, int]) -> dict[str, Any]:
-    from activesurv_bringup.experiments.evaluation import results_document
     from activesurv_bringup.experiments.experiment import load_experiment
     from activesurv_bringup.experiments.lockstep import run_lockstep
+    from activesurv_evaluation.results import results_document
 
     set_name, system, seed = args
     exp = load_experiment(set_name, system, seed)
@@ -111,7 +111,7 @@ def run() -> dict[str, Any]:
     # bench_reliability.py measures it again under image-stream load.
     from activesurv_bringup.experiments.graph import run_graph
     from activesurv_bringup.experiments.options import RunOptions
-    from activesurv_bringup.experiments.report import load_run
+    from activesurv_evaluation.runs import load_run
 
     exp = load_experiment('A', 'fast', 7)
     with tempfile.TemporaryDirectory() as tmp:

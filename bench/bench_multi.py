@@ -12,7 +12,7 @@ simulated seconds (600 by default: the issue's 10 minutes) at rtf 1:
 * ``two_id_switches``, ``two_gospa_mean_mm``, ``two_max_objects_at_once``;
 * ``two_cameras_vs_clairvoyant`` / ``two_visibility_vs_clairvoyant``: cameras per demand and
   mean fused visibility against a clairvoyant dispatcher (knows the true positions and
-  occlusions; ``activesurv_bringup.experiments.clairvoyant``), and
+  occlusions; ``activesurv_studies.clairvoyant``), and
   ``two_greedy_visibility_vs_clairvoyant`` for an occlusion-blind greedy one;
 * ``two_latency_median_ms``: demand instant to estimate;
 * ``scaling_<N>obj_<n>cam_cameras_per_demand`` / ``_none_fraction`` / ``_demands``: where it
@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from activesurv_bringup.experiments.clairvoyant import compare
 from activesurv_prediction.demands import TargetGeometry
 from activesurv_prediction.multi import MultiTracker
+from activesurv_studies.clairvoyant import compare
 from activesurv_studies.scaling import run_scaling
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')

@@ -77,7 +77,7 @@ def _experiments(seeds: int) -> dict[str, Any]:
     """Fast system, Set A cameras, lockstep, on the Set A parabola with a manoeuvre (each
     seed's perturbed rig, told its truth: the predictors are compared, not calibrations)."""
     from activesurv_bringup.cli import experiment
-    from activesurv_bringup.experiments.evaluation import summary
+    from activesurv_evaluation.results import summary
 
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix='activesurv-bench-pred-') as tmp:

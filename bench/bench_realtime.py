@@ -37,7 +37,7 @@ def _run(
     from activesurv_bringup.experiments.experiment import load_experiment
     from activesurv_bringup.experiments.graph import run_graph
     from activesurv_bringup.experiments.options import RunOptions
-    from activesurv_bringup.experiments.report import load_run
+    from activesurv_evaluation.runs import load_run
 
     exp = load_experiment('A', 'fast', 7)
     run_graph(exp, tmp / name, RunOptions(rtf=rtf, processes=processes), progress=lambda _: None)

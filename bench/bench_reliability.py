@@ -24,8 +24,8 @@ import numpy as np
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.graph import run_graph
 from activesurv_bringup.experiments.options import RunOptions
-from activesurv_bringup.experiments.report import load_run
 from activesurv_bringup.files import dds_profile_path
+from activesurv_evaluation.runs import load_run
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.load_node import stream_topic
 

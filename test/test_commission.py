@@ -19,6 +19,8 @@ from activesurv_common.calibration import load_calibration
 from activesurv_sim.rig import perturb_rig, save_rig
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
+# The commissioning fixture runs the node graph for about a minute.
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 
 @pytest.fixture(scope='module')
@@ -75,7 +77,7 @@ def test_the_commissioned_values_match_the_rig(commissioned: tuple[Path, Path]) 
 
 
 def test_the_report_shows_the_commissioning_quality(commissioned: tuple[Path, Path]) -> None:
-    from activesurv_bringup.experiments.report import calibration_section
+    from activesurv_evaluation.report import calibration_section
 
     _, out = commissioned
     cam = json.loads((out / 'commission.json').read_text())['cameras']['cam3']

@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 
 from activesurv_bringup.errors import ConfigError
-from activesurv_bringup.experiments.evaluation import results_document
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.faults import parse_fault
 from activesurv_bringup.experiments.lockstep import run_lockstep
+from activesurv_evaluation.results import results_document
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 

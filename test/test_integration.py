@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from activesurv_bringup.experiments.evaluation import results_document, summary
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.lockstep import run_lockstep
+from activesurv_evaluation.results import results_document, summary
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')

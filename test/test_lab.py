@@ -13,12 +13,14 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from activesurv_bringup.rig.rigs import nominal
 from activesurv_common.calibration import load_calibration
 from activesurv_sim.rig import load_rig, perturb_rig, save_rig
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 
 def test_live_commissioning_through_serial_controllers(

@@ -13,11 +13,11 @@ import yaml
 
 from activesurv_bringup.cli import experiment
 from activesurv_bringup.errors import ConfigError
-from activesurv_bringup.experiments.evaluation import summary
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.graph import graph_specs
 from activesurv_bringup.rig.choice import choose
 from activesurv_bringup.rig.rigs import nominal
+from activesurv_evaluation.results import summary
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SIM_MODULES = ('activesurv_sim.sim_camera_node', 'activesurv_sim.xy_table_node')

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from activesurv_bringup.experiments.clairvoyant import compare
+from activesurv_studies.clairvoyant import compare
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')

@@ -496,8 +496,8 @@ def experiment(
     Raises:
         ConfigError: for a bad configuration; NodeDiedError if a node of the graph dies.
     """
-    from activesurv_bringup.experiments.evaluation import results_document, write_results
     from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_evaluation.runs import finish_run
 
     opts = options or RunOptions()
     if opts.kills and mode != 'graph':
@@ -510,7 +510,6 @@ def experiment(
     new_output_dir(out)  # refused before anything is commissioned or run
     if hardware is not None:
         from activesurv_bringup.experiments.hardware_graph import run_hardware
-        from activesurv_bringup.experiments.report import load_run
         from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
         from activesurv_hardware.delays import with_measured_delays
 
@@ -522,7 +521,7 @@ def experiment(
         started = time.monotonic()
         with results_on_stop(out):
             run_hardware(exp, hw, out, opts, say, home or hw.home, motion_correction)
-        result = load_run(out)
+        result = finish_run(out)
         say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
         return result
     from activesurv_bringup.experiments.scenes import SCENES
@@ -537,38 +536,29 @@ def experiment(
     doc: dict[str, Any]
     if mode == 'lockstep':
         from activesurv_bringup.experiments.lockstep import run_lockstep
-        from activesurv_studies.tracking import track_metrics
+        from activesurv_evaluation.tracking import track_metrics
 
         def progress(j: int, m: int, t: float) -> None:
             say(f'demand {j} of {m}, simulated time {t:.1f} s')
 
         track_log: list[Any] = []
         records = run_lockstep(exp, opts.faults, progress, track_log=track_log)
-        doc = results_document(
-            set_name,
-            system,
-            records,
-            {
-                'seed': seed,
-                'mode': 'lockstep',
-                'predictor': predictor,
-                'faults': [str(f) for f in opts.faults],
-                **choice.describe(),
-            },
-            track_metrics([m for m, _ in track_log], [t for _, t in track_log]),
+        doc = finish_run(
+            out,
+            record=exp.record(opts.faults, execution='lockstep'),
+            demands=records,
+            tracking=track_metrics([m for m, _ in track_log], [t for _, t in track_log]),
         )
-        write_results(out / 'results.json', doc)
     elif opts.hosts == 'netns':
         doc = _run_on_hosts(exp, out, opts, say)
     else:
         from activesurv_bringup.experiments.graph import run_graph
-        from activesurv_bringup.experiments.report import load_run
 
         if opts.dds_profile is not None:
             say(f'Fast DDS profile {opts.dds_profile}')
         with results_on_stop(out):
             run_graph(exp, out, opts, progress=say)
-        doc = load_run(out)
+        doc = finish_run(out)
     say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
     return doc
 
@@ -580,10 +570,10 @@ def results_on_stop(out: Path) -> Iterator[None]:
     try:
         yield
     except StopRequested:
-        from activesurv_bringup.experiments.report import load_run  # evaluation: lazy, as above
+        from activesurv_evaluation.runs import finish_run  # evaluation: lazy, as above
 
         if (out / 'bag' / 'metadata.yaml').is_file():
-            load_run(out, partial=True)
+            finish_run(out, partial=True)
         raise
 
 
@@ -623,7 +613,8 @@ def _scene(
     surveillance session on the run's rig (the same graph, results and report)."""
     from activesurv_bringup.experiments.scenes import load_scene
     from activesurv_bringup.experiments.session_options import SurveilOptions
-    from activesurv_bringup.experiments.surveil import run_surveil, session_table
+    from activesurv_bringup.experiments.surveil import run_surveil
+    from activesurv_evaluation.session_report import session_table
 
     scene = load_scene(set_name)
     session = SurveilOptions(
@@ -651,9 +642,8 @@ def _run_on_hosts(
     exp: Any, out: Path, opts: RunOptions, say: Callable[[str], None]
 ) -> dict[str, Any]:
     """Run the graph over network namespaces: core plus one host per camera, DDS over UDP."""
-    from activesurv_bringup.experiments.evaluation import write_results
     from activesurv_bringup.experiments.graph import run_graph
-    from activesurv_bringup.experiments.report import load_run
+    from activesurv_evaluation.runs import finish_run
     from activesurv_launch.netns import NetnsHosts, unavailable_reason
 
     reason = unavailable_reason()
@@ -665,9 +655,10 @@ def _run_on_hosts(
         say(f'hosts: {hosts.addresses}')
         run_graph(exp, out, opts, progress=say, hosts=hosts)
         traffic = hosts.traffic_bytes()
-    doc = load_run(out)
-    doc['hosts'] = {'mode': 'netns', 'addresses': hosts.addresses, 'traffic_bytes': traffic}
-    write_results(out / 'results.json', doc)
+    doc = finish_run(
+        out,
+        extra={'hosts': {'mode': 'netns', 'addresses': hosts.addresses, 'traffic_bytes': traffic}},
+    )
     say(f'bytes through each host interface: {traffic}')
     return doc
 
@@ -759,12 +750,12 @@ def commission(
 
 def report(path: Path, out: Path | None = None) -> Path:
     """Plots and report.md of recorded runs (into ``out``); returns the report's path."""
-    from activesurv_bringup.experiments.report import report as make_report
-    from activesurv_bringup.experiments.report import summary_table
+    from activesurv_evaluation.report import report as make_report
+    from activesurv_evaluation.report import summary_table
 
     docs, out = make_report(path, out)
     if docs and all(d.get('mode') == 'surveil' for d in docs):
-        from activesurv_bringup.experiments.surveil import session_table
+        from activesurv_evaluation.session_report import session_table
 
         print('\n\n'.join(session_table(d) for d in docs))
     else:
@@ -783,7 +774,7 @@ def demo(
     rig_seed: int = DEFAULT_RIG_SEED,
 ) -> Path:
     """The six experiments and their report, in a new directory; returns it."""
-    from activesurv_bringup.experiments.report import summary_table, write_report
+    from activesurv_evaluation.report import summary_table, write_report
 
     root = new_output_dir(out) if out is not None else timestamped_dir(Path('runs'), 'demo')
     print(f'activesurv demo: writing to {root}', flush=True)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from activesurv_common.trigger import SourceKind
 from activesurv_dispatch.sensors import Sensor
 from activesurv_hardware.hardware_file import CameraEntry
 from activesurv_launch.launcher import NodeSpec
@@ -69,7 +70,7 @@ def bridge_spec(stage: str, config_file: str, home: bool) -> NodeSpec:
 def source_specs(cam: CameraEntry, calibration: str) -> tuple[list[NodeSpec], dict[str, str]]:
     """A camera's driver node (``device:``) or, for a driver's topic, the imager's remappings."""
     cid = cam.camera_id
-    if cam.source.kind == 'topic':
+    if cam.source.kind == SourceKind.TOPIC:
         remap = {f'{cid}/image_raw': cam.source.value}
         return [], {**remap, f'{cid}/camera_info': cam.source.camera_info}
     options = dict(cam.source.options)

@@ -156,6 +156,7 @@ def obstacles_to_list(obstacles: Iterable[Obstacle]) -> list[dict[str, Any]]:
 
 
 PLATE_THICKNESS = 0.006  # m: a marker plate as a solid
+PLATE_HALF_SIZE = 0.03  # m: half side of an object's (square) marker plates
 
 
 def plate_box(centre: ArrayLike, normal: ArrayLike, half_size: float) -> Box:

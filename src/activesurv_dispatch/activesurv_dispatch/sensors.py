@@ -22,6 +22,7 @@ from activesurv_common.camera_model import CameraModel, dynamic_camera
 from activesurv_common.errors import CalibrationError
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
 from activesurv_common.occlusion import (
+    PLATE_HALF_SIZE,
     Obstacle,
     ObstacleError,
     obstacles_from_list,
@@ -108,7 +109,7 @@ class Setup:
     marker_radius: float
     motion: MotionClass
     obstacles: tuple[Obstacle, ...] = ()  # fixed solids of the cell (occlusion, eq. 1)
-    object_half_size: float = 0.03  # m: half side of an object's marker plates (occluders)
+    object_half_size: float = PLATE_HALF_SIZE  # m: half side of an object's marker plates
 
     def sensor(self, camera_id: str) -> Sensor:
         for s in self.sensors:

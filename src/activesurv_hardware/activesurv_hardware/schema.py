@@ -14,7 +14,6 @@ ports' existence are the caller's (they need the layout file and the machine).
 
 from __future__ import annotations
 
-from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -22,22 +21,10 @@ import yaml
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from activesurv_common.schema import StrictModel, problems
+from activesurv_common.trigger import Trigger
 from activesurv_stages.schema import DAISY_CHAINED, ControllerFile
 
 TABLE_JOINTS = ('table_x', 'table_y')
-
-
-class Trigger(StrEnum):
-    """How a camera's exposures are timed."""
-
-    HARDWARE = 'hardware'  # a trigger line exposes at the instant
-    SOFTWARE = 'software'  # our capture request (or the driver's Trigger service) exposes
-    FREE = 'free'  # free-running: the frame nearest the instant is taken
-
-
-class SourceKind(StrEnum):
-    TOPIC = 'topic'  # a ROS 2 driver publishes the frames
-    DEVICE = 'device'  # our camera node opens the device (OpenCV VideoCapture)
 
 
 Vector3 = tuple[float, float, float]

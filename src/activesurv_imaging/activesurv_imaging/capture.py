@@ -40,6 +40,7 @@ from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, load_obstacles, sight_blocked
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
+from activesurv_common.trigger import Trigger
 from activesurv_imaging.errors import ImagingError, VisionErrors
 from activesurv_imaging.observation import (
     Observation,
@@ -100,7 +101,7 @@ class ImagerConfig:
     def __post_init__(self) -> None:
         if self.trigger not in TRIGGERS:
             raise ImagingError(f'trigger must be one of {TRIGGERS}, got {self.trigger!r}')
-        if self.trigger == 'free' and not (
+        if self.trigger == Trigger.FREE and not (
             math.isfinite(self.frame_rate) and self.frame_rate > 0.0
         ):
             raise ImagingError(f'free-running needs frame_rate > 0, not {self.frame_rate}')
@@ -127,7 +128,7 @@ class ImagerConfig:
     @property
     def tolerance(self) -> float:
         """Largest |exposure - demand instant| accepted: half a period when free-running."""
-        if self.trigger == 'free':
+        if self.trigger == Trigger.FREE:
             # The nearest frame is within half a period (plus the stamps' jitter); when it was
             # dropped, the nearest that came is still taken (and moved to the instant).
             return self.free_reach / self.frame_rate
@@ -248,7 +249,11 @@ class CaptureCore(Generic[F]):
         c = self.config
         timed_out = now > r.demand_time + c.frame_timeout
         stamps = self.frames.stamps()
-        if c.trigger == 'free' and not timed_out and (not stamps or stamps[-1] < r.demand_time):
+        if (
+            c.trigger == Trigger.FREE
+            and not timed_out
+            and (not stamps or stamps[-1] < r.demand_time)
+        ):
             return None  # a nearer frame may still come: wait for one exposed after t_j
         hit = self.frames.closest(r.demand_time, c.tolerance)
         if hit is None:

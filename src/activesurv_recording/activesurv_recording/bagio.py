@@ -362,10 +362,3 @@ def offered_qos(path: Path) -> dict[str, list[Any]]:
             return out
     except Exception as exc:
         raise BagError(f'bag {path} is unreadable or damaged: {exc}') from exc
-
-
-def run_info(path: Path) -> dict[str, Any]:
-    """The run description the orchestrator stored in the bag."""
-    for m in read_bag(path, {RUN_INFO_TOPIC}):
-        return dict(json.loads(m.msg.data))
-    raise BagError(f'bag {path} has no {RUN_INFO_TOPIC} message (not an activesurv run?)')

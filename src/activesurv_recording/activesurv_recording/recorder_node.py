@@ -81,7 +81,10 @@ class RecorderNode(Node):
         except ValueError as exc:
             raise BagError(f'run_info is not JSON: {exc}') from exc
         # Bags of this recorder note the QoS their publishers offered (replay trusts them).
-        info.setdefault('recorder', {})['qos'] = 'offered'
+        # (A run record's ``recorder`` field; any other JSON object gets the key too.)
+        if not isinstance(info, dict):
+            raise BagError('run_info must be a JSON object')
+        info['recorder'] = {**(info.get('recorder') or {}), 'qos': 'offered'}
         self.bag.write_json(RUN_INFO_TOPIC, 0, info)
         # Discovery runs on the wall clock: with simulated time nothing would tick before /clock.
         self.create_timer(

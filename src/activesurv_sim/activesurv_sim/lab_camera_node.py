@@ -43,7 +43,13 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import ObjectState
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
+from activesurv_sim.conversions import (
+    FIRST_FRAME,
+    TABLE_ID,
+    TABLE_JOINTS,
+    published_model,
+    simulated_camera,
+)
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
 
@@ -167,6 +173,8 @@ class LabCameraNode(Node):
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
         self.frames += 1
+        if self.frames == 1:  # the lab reports ready once every camera has sent one
+            self.get_logger().info(FIRST_FRAME)
 
     def _say_rate(self) -> None:
         """What the camera achieves on this machine (a busy one exposes less often)."""

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, unit
 from activesurv_common.mount import CameraMount
-from activesurv_common.occlusion import Box, Obstacle
+from activesurv_common.occlusion import PLATE_HALF_SIZE, Box, Obstacle
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.errors import RenderError
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
@@ -44,7 +44,7 @@ class ObjectGeometry:
 
     side_radius: float = 0.0125
     top_radius: float = 0.0125
-    plate_half_size: float = 0.03
+    plate_half_size: float = PLATE_HALF_SIZE
 
 
 EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from activesurv_common.occlusion import PLATE_HALF_SIZE
 from activesurv_common.ros.parameters import Param
 
 PARAMS = (
@@ -41,7 +42,7 @@ PARAMS = (
     Param('seed', 0, 'image noise seed'),
     Param('side_marker_radius', 0.0125, 'side marker radius (m)', above=0.0),
     Param('top_marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
-    Param('plate_half_size', 0.03, 'half side of the marker plates (m)', above=0.0),
+    Param('plate_half_size', PLATE_HALF_SIZE, 'half side of the marker plates (m)', above=0.0),
     Param('blur_sigma', 0.8, 'lens blur (px)', minimum=0.0),
     Param('electrons_per_level', 40.0, 'shot noise scale', above=0.0),
     Param('read_noise', 1.0, 'read noise (grey levels)', minimum=0.0),

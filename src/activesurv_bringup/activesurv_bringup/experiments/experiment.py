@@ -14,7 +14,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import yaml
@@ -26,6 +26,7 @@ from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.camera_model import CameraModel, overhead_camera
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.mount import CameraMount
+from activesurv_common.occlusion import obstacles_to_list
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.initial_pose import initial_poses
@@ -35,6 +36,7 @@ from activesurv_dispatch.session import DispatcherConfig
 from activesurv_fusion.config import FusionConfig
 from activesurv_imaging.capture import ImagerConfig
 from activesurv_prediction.session import PredictorConfig
+from activesurv_recording.run_record import ExperimentRun, RigFacts, RunRecord
 from activesurv_sim.xytable import (
     ObjectModel,
     TableConfig,
@@ -195,16 +197,35 @@ class Experiment:
             **imager_injection(fault),  # type: ignore[arg-type]
         )
 
-    def summary(self) -> dict[str, Any]:
-        rig = self.rig.describe() if self.rig is not None else {'rig': None, 'calibration': None}
+    def record(
+        self, faults: Sequence[Fault] = (), execution: Literal['graph', 'lockstep'] = 'graph'
+    ) -> RunRecord:
+        """The run record of this experiment (what the bag and ``results.json`` say of it)."""
+        return RunRecord(
+            run=ExperimentRun(
+                set_name=self.set_name,
+                execution=execution,
+                demand_times=tuple(self.demand_times),
+                faults=tuple(str(f) for f in faults),
+                object=dict(self.config['object']),
+            ),
+            **self.record_facts(),
+        )
+
+    def record_facts(self) -> dict[str, Any]:
+        """The run record's fields every run of this experiment's rig shares (a session's too)."""
         return {
-            **rig,
-            'set': self.set_name,
             'system': self.system,
             'seed': self.seed,
             'predictor': str(self.config['predictor'].get('model', 'imm')),
-            'demand_times': list(self.demand_times),
-            'initial_poses': {c: [float(v) for v in q] for c, q in self.setup.initial.items()},
+            'marker_radius': self.setup.marker_radius,
+            'initial_poses': {
+                c: tuple(float(v) for v in q) for c, q in self.setup.initial.items()
+            },
+            'rig': self.rig.describe() if self.rig is not None else RigFacts(),
+            # What the system was told: a replay's imagers are told the same.
+            'setup': setup_to_dict(self.setup) if self.rig is not None else None,
+            'obstacles': tuple(obstacles_to_list(self.setup.obstacles)),
         }
 
 

@@ -31,6 +31,7 @@ from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.runner import NodeRunner
 from activesurv_launch.session import GraphSession
+from activesurv_recording.run_record import RunRecord
 from activesurv_sim.rig import save_rig
 
 if TYPE_CHECKING:
@@ -56,21 +57,6 @@ def rig_files(exp: Experiment, out: Path) -> dict[str, str]:
     }
 
 
-def run_info(exp: Experiment, faults: Sequence[Fault] = ()) -> dict[str, Any]:
-    info = exp.summary()
-    info.update(
-        {
-            'mode': 'graph',
-            'marker_radius': exp.setup.marker_radius,
-            'object': exp.config['object'],
-            'faults': [str(f) for f in faults],
-        }
-    )
-    if exp.rig is not None:  # what the system was told: a replay's imagers are told the same
-        info['setup'] = setup_to_dict(exp.setup)
-    return info
-
-
 def graph_specs(
     exp: Experiment,
     bag: Path,
@@ -80,8 +66,11 @@ def graph_specs(
     thin: Sequence[str] = (),
     split_hosts: bool = False,
     preview_rate: float = 0.0,
+    record: RunRecord | None = None,
 ) -> list[NodeSpec]:
     """Every node of the run with its parameters, in start order (xy table last).
+
+    ``record``: the run record the recorder stores (default: the experiment's with ``faults``).
 
     ``thin`` adds topics the recorder thins to ``image_rate``; with ``split_hosts`` each
     camera's nodes go on host ``camN`` and the rest on ``core``; ``preview_rate`` (Hz) makes
@@ -105,7 +94,7 @@ def graph_specs(
                 **sim,
                 'output': str(bag),
                 'image_rate': float(image_rate),
-                'run_info': json.dumps(run_info(exp, faults)),
+                'run_info': (record or exp.record(faults)).to_json(),
                 'thin_topics': ['/overhead/image_raw', '/overhead/camera_info', *thin],
                 'exclude': ['/rosout', '/parameter_events']
                 + [

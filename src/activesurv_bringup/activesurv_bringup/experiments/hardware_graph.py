@@ -17,7 +17,6 @@ What changes against a simulated run (:func:`~activesurv_bringup.experiments.gra
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -34,17 +33,18 @@ from activesurv_bringup.experiments.graph import (
     core_specs,
     locator_spec,
     run_graph,
-    run_info,
 )
 from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
 from activesurv_common.calibration import pose_to_list
+from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_hardware.hardware_file import CameraEntry, Hardware
 from activesurv_imaging.capture import ImagerConfig
 from activesurv_launch.launcher import NodeSpec
+from activesurv_recording.run_record import OnRig, RunRecord
+from activesurv_sim.conversions import TABLE_ID
 
-TABLE_ID = 'xy_table'
 START_MARGIN = 25.0  # s from the launch to run time 0: nodes up, stages and table in place
 
 
@@ -82,29 +82,11 @@ def imager_config(
     )
 
 
-def hardware_specs(
-    exp: Experiment,
-    hw: Hardware,
-    bag: Path,
-    origin: float,
-    image_rate: float = 2.0,
-    home: bool = False,
-    motion_correction: bool = True,
-    record_frames: str = 'used',
-) -> list[NodeSpec]:
-    """Every node of a run on the rig ``hw``, in start order (the table runner last).
-
-    ``record_frames``: ``used`` records each frame an imager measured for a demand (PNG, on
-    ``<cam>/demand_frame``), ``all`` every frame of every dynamic camera, ``none`` none.
-    """
-    wall: dict[str, Any] = {'use_sim_time': False}
-    files = hardware_files(exp, hw, bag.parent)
-    over = pose_to_list(exp.overhead(truth=False)[1])
-    info = run_info(exp)
-    info.update(
-        mode='hardware',
+def on_rig(exp: Experiment, hw: Hardware, origin: float, motion_correction: bool) -> OnRig:
+    """What the run record says of a run on the rig ``hw`` with run time 0 at ``origin``."""
+    return OnRig(
         hardware=str(hw.path),
-        rig=hw.name,
+        name=hw.name,
         namespace=hw.namespace,
         time_origin=origin,
         truth='table controller' if hw.table is not None else None,
@@ -114,6 +96,31 @@ def hardware_specs(
             for cid, cam in hw.cameras.items()
         },
     )
+
+
+def hardware_specs(
+    exp: Experiment,
+    hw: Hardware,
+    bag: Path,
+    origin: float,
+    image_rate: float = 2.0,
+    home: bool = False,
+    motion_correction: bool = True,
+    record_frames: str = 'used',
+    record: RunRecord | None = None,
+) -> list[NodeSpec]:
+    """Every node of a run on the rig ``hw``, in start order (the table runner last).
+
+    ``record``: the run's record (default: the experiment's); the rig's facts are added.
+
+    ``record_frames``: ``used`` records each frame an imager measured for a demand (PNG, on
+    ``<cam>/demand_frame``), ``all`` every frame of every dynamic camera, ``none`` none.
+    """
+    wall: dict[str, Any] = {'use_sim_time': False}
+    files = hardware_files(exp, hw, bag.parent)
+    over = pose_to_list(exp.overhead(truth=False)[1])
+    on = on_rig(exp, hw, origin, motion_correction)
+    record = (record or exp.record()).with_hardware(on)
     specs = [
         NodeSpec(
             'recorder',
@@ -122,7 +129,7 @@ def hardware_specs(
                 **wall,
                 'output': str(bag),
                 'image_rate': float(image_rate),
-                'run_info': json.dumps(info),
+                'run_info': record.to_json(),
                 'strip_namespace': hw.namespace,
                 # Free-running cameras stream 30 frames a second each: the bag keeps the
                 # overhead stream thinned and no dynamic camera's frames (the observations,
@@ -145,7 +152,9 @@ def hardware_specs(
     sources, remap = source_specs(hw.overhead, files['calibration'])
     specs += sources
     locator = locator_spec(exp, wall, over, hw.geometry.top_marker_radius, remap)
-    if hw.overhead.source.kind == 'topic':  # the commissioned intrinsics, not the driver's
+    if (
+        hw.overhead.source.kind == SourceKind.TOPIC
+    ):  # the commissioned intrinsics, not the driver's
         intrinsics = Path(files['calibration'], 'overhead.yaml')
         parameters = {**locator.parameters, 'camera_info_file': str(intrinsics)}
         locator = replace(locator, parameters=parameters) if intrinsics.is_file() else locator
@@ -171,12 +180,14 @@ def hardware_specs(
                     **mount_parameters(s),
                     'record_frames': record_frames == 'used',
                     # A software-triggered driver: its Trigger service, called ahead.
-                    'trigger_service': cam.trigger_service if cam.trigger == 'software' else '',
+                    'trigger_service': cam.trigger_service
+                    if cam.trigger == Trigger.SOFTWARE
+                    else '',
                     'trigger_lead': cam.trigger_lead,
                     # The commissioned intrinsics, whatever the driver's camera_info says.
                     **(
                         {'camera_info_file': f'{files["calibration"]}/{cid}.yaml'}
-                        if cam.source.kind == 'topic'
+                        if cam.source.kind == SourceKind.TOPIC
                         and Path(files['calibration'], f'{cid}.yaml').is_file()
                         else {}
                     ),

@@ -25,11 +25,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from activesurv_bringup.errors import ConfigError
-from activesurv_bringup.experiments.evaluation import (
-    DemandRecord,
-    PredictionLog,
-    observed_visibility,
-)
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind
 from activesurv_common.mount import CameraMount
@@ -37,6 +32,8 @@ from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher
+from activesurv_evaluation.results import DemandRecord, PredictionLog, observed_visibility
+from activesurv_evaluation.tracking import Snapshot
 from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
 from activesurv_fusion.config import FusionConfig
 from activesurv_fusion.errors import InvalidReadingError
@@ -49,7 +46,6 @@ from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.sim_camera import ObjectGeometry, object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
-from activesurv_studies.tracking import Snapshot
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int, float], None]
@@ -87,7 +83,7 @@ def run_lockstep(
         progress: called as ``progress(demand_number, demands, sim_time)`` after each demand.
         plan_log: if given, receives (demand index, assigned cameras) of every capture.
         track_log: if given, receives the overhead tracks and the truth at every frame
-            (:func:`activesurv_studies.tracking.track_metrics`).
+            (:func:`activesurv_evaluation.tracking.track_metrics`).
     """
     rng = np.random.default_rng(exp.seed)
     noise = SensorNoise()

@@ -10,7 +10,6 @@ faithful replay reproduces them.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -26,22 +25,19 @@ from activesurv_bringup.specs import live_view_spec, mount_parameters
 from activesurv_dispatch.sensors import load_setup, setup_from_dict
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_launch.session import GraphSession
-from activesurv_recording.bagio import (
-    offered_qos,
-    read_bag,
-    run_info,
-)
+from activesurv_recording.bagio import offered_qos, read_bag
 from activesurv_recording.conversions import message_class, playback_qos
+from activesurv_recording.run_record import RunRecord, read_run_record
 
 Progress = Callable[[str], None]
 
 
-def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
+def replay_specs(record: RunRecord, bag: Path) -> list[NodeSpec]:
     # The mounts the run's imagers were given (its calibration), else the paper set-up.
-    if isinstance(info.get('setup'), dict):
-        setup = setup_from_dict(info['setup'], str(info['system']))
+    if record.setup is not None:
+        setup = setup_from_dict(record.setup, record.system)
     else:
-        setup = load_setup(motion=str(info['system']))
+        setup = load_setup(motion=record.system)
     sim = {'use_sim_time': True}
     specs = [
         NodeSpec(
@@ -51,14 +47,13 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
                 **sim,
                 'output': str(bag),
                 'image_rate': 0.0,
-                'run_info': json.dumps({**info, 'mode': 'replay'}),
+                'run_info': record.as_replay().to_json(),
             },
         )
     ]
     # A hardware run's imagers: their trigger and timing as the run told them (the recorded
     # frames are its demand frames, measured as they were).
-    imagers = info.get('imagers')
-    told: dict[str, Any] = imagers if isinstance(imagers, dict) else {}
+    told = record.imagers
     for s in setup.sensors:
         own = dict(told.get(s.camera_id, {}))
         own.pop('camera_id', None)
@@ -69,7 +64,7 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
                 parameters={
                     **sim,
                     'camera_id': s.camera_id,
-                    'marker_radius': float(info['marker_radius']),
+                    'marker_radius': record.marker_radius,
                     **own,
                     'reliable_images': True,
                     'exact_states': not own,
@@ -91,8 +86,8 @@ def replay_specs(info: dict[str, Any], bag: Path) -> list[NodeSpec]:
     return specs
 
 
-def _inputs(info: dict[str, Any]) -> set[str]:
-    cams = [c for c in info['initial_poses']]
+def _inputs(record: RunRecord) -> set[str]:
+    cams = list(record.initial_poses)
     topics = {'/capture_request'}
     for c in cams:
         topics |= {f'/{c}/image_raw', f'/{c}/camera_info', f'/{c}/stage/joint_states'}
@@ -130,13 +125,13 @@ def run_replay(
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
-    info = run_info(bag)
-    messages = list(read_bag(bag, _inputs(info)))
+    record = read_run_record(bag)
+    messages = list(read_bag(bag, _inputs(record)))
     if not messages:
         raise BagError(f'bag {bag} has no imaging inputs to replay')
     out_dir.mkdir(parents=True, exist_ok=True)
     new_bag = out_dir / 'bag'
-    specs = replay_specs(info, new_bag)
+    specs = replay_specs(record, new_bag)
     if foxglove is not None:
         specs.insert(-1, live_view_spec(foxglove))
     owns = not rclpy.ok()
@@ -147,9 +142,7 @@ def run_replay(
     # (``playback_qos``, what ``ros2 bag play`` does), so a bag replays the same way with either.
     # Bags from before the recorder noted offered QoS, or ACTIVESURV_REPLAY_RECORDED_QOS=0,
     # get reliable + transient local (depth 50) on every topic, which matches every subscriber.
-    faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS', '1') != '0' and (
-        isinstance(info.get('recorder'), dict) and info['recorder'].get('qos') == 'offered'
-    )
+    faithful = os.environ.get('ACTIVESURV_REPLAY_RECORDED_QOS', '1') != '0' and record.offered_qos
     recorded = offered_qos(bag) if faithful else {}
     fallback = QoSProfile(
         history=HistoryPolicy.KEEP_LAST,

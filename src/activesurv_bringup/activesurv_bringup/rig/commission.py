@@ -49,6 +49,7 @@ from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
+from activesurv_common.trigger import SourceKind
 from activesurv_dispatch.sensors import Setup, load_setup
 from activesurv_hardware.hardware_file import Hardware
 from activesurv_imaging.calibration import board_points, find_corners
@@ -709,7 +710,7 @@ def hardware_commission_specs(
     for cam in [hw.overhead, *(hw.cameras[c] for c in cameras)]:
         nodes, _ = source_specs(cam, str(work / 'factory'))
         specs += nodes
-        if cam.source.kind == 'topic':
+        if cam.source.kind == SourceKind.TOPIC:
             topics_of[cam.camera_id] = (cam.source.value, cam.source.camera_info)
     if hw.namespace:
         specs = [replace(s, namespace=hw.namespace) for s in specs]

@@ -44,10 +44,11 @@ from activesurv_bringup.rig.commission import TABLE_RANGE, camera_spec, check_ca
 from activesurv_bringup.rig.hardware import paper_rig
 from activesurv_bringup.rig.rigs import nominal
 from activesurv_common.lifetime import STOP_SIGNALS
+from activesurv_common.trigger import Trigger
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
+from activesurv_sim.conversions import FIRST_FRAME, TABLE_ID, TABLE_JOINTS
 from activesurv_stages.config import motion_class
 from activesurv_stages.emulators import (
     EmulatorBase,
@@ -154,7 +155,7 @@ def hardware_document(
             'frame_rate': hz,
             'exposure_delay': EXPOSURE_DELAY,
         }
-        if trigger == 'software' and cid != 'overhead':
+        if trigger == Trigger.SOFTWARE and cid != 'overhead':
             doc.update(
                 trigger='software',
                 trigger_service=f'{ns}/{cid}_camera/trigger',
@@ -237,7 +238,7 @@ def lab_specs(
     for i, s in enumerate(setup.sensors):
         if s.camera_id in cameras:
             extra = {**lab, 'frame_rate': rate, 'seed': 500 + i, **timing(s.camera_id)}
-            extra['software_trigger'] = trigger == 'software'
+            extra['software_trigger'] = trigger == Trigger.SOFTWARE
             specs.append(camera_spec(s.camera_id, rig_file, factory, extra))
     return [
         replace(s, module='activesurv_sim.lab_camera_node', namespace=namespace) for s in specs
@@ -252,6 +253,12 @@ def camera_rates(logs: Path) -> list[str]:
         if said:
             out.append(f'{log.stem.removesuffix("_camera")}: {said[-1].split("]: ")[-1]}')
     return out
+
+
+def _cameras_streaming(logs: Path) -> bool:
+    """Whether every camera driver of the lab has sent its first frame."""
+    cams = sorted(logs.glob('*_camera.log'))
+    return bool(cams) and all(FIRST_FRAME in log.read_text(errors='replace') for log in cams)
 
 
 def run_lab(
@@ -312,8 +319,12 @@ def run_lab(
             f'cameras free-running at {frame_rate:g} Hz (overhead {OVERHEAD_RATE:g} Hz); '
             f'hardware file {hw_file}; Ctrl-C to stop'
         )
-        while not stop.wait(0.5):
+        ready = out / 'ready'
+        while not stop.wait(0.2):
             launcher.check()  # NodeDiedError if a camera driver died
+            if not ready.exists() and _cameras_streaming(out / 'logs'):
+                ready.write_text('every camera has sent a frame\n')
+                progress(f'lab ready: every camera streams ({ready})')
     finally:
         launcher.stop()
         for e in emulators:

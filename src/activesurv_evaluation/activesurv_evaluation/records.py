@@ -7,22 +7,21 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.experiments.evaluation import DemandRecord, visibility_from_transforms
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.occlusion import Obstacle, obstacles_from_list, sight_blocked
 from activesurv_common.sensor_model import SensorModel
+from activesurv_evaluation.results import DemandRecord, visibility_from_transforms
+from activesurv_recording.run_record import RunRecord
 
 STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
 
 
-def run_obstacles(info: dict[str, Any]) -> tuple[Obstacle, ...] | None:
-    """The simulated cell's obstacles from a run's description (None for a hardware run:
-    nothing there knows where the lines of sight really went)."""
-    if info.get('mode') == 'hardware' or 'hardware' in info:
+def run_obstacles(record: RunRecord) -> tuple[Obstacle, ...] | None:
+    """The simulated cell's obstacles of a run (None for a hardware run: nothing there knows
+    where the lines of sight really went)."""
+    if record.hardware is not None:
         return None
-    if 'obstacles' in info:  # a session's
-        return obstacles_from_list(info['obstacles'])
-    return obstacles_from_list((info.get('setup') or {}).get('obstacles'))
+    return obstacles_from_list(list(record.obstacles))
 
 
 def msg_stamp(msg: Any) -> float:

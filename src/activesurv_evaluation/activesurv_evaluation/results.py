@@ -28,6 +28,7 @@ from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
 from activesurv_dispatch.sensors import Setup
 from activesurv_dispatch.visibility import fused_visibility
+from activesurv_evaluation.timing import empty_timing
 
 Array = NDArray[np.float64]
 
@@ -104,6 +105,8 @@ class DemandRecord:
     # Assigned cameras whose line of sight to the marker was blocked at the instant (from
     # the simulator's truth; None where nothing knows it: hardware runs).
     occluded: list[str] | None = field(default_factory=list)
+    # Seconds after the instant of each step (activesurv_evaluation.timing).
+    timing: dict[str, Any] = field(default_factory=empty_timing)
 
     @property
     def position_error(self) -> float | None:
@@ -142,6 +145,9 @@ class DemandRecord:
             'frame_offsets': {c: float(v) for c, v in self.frame_offsets.items()},
             'object': self.object,
             'occluded': None if self.occluded is None else list(self.occluded),
+            'timing': self.timing
+            if self.timing.get('estimate') is not None or self.latency is None
+            else {**self.timing, 'estimate': self.latency},
         }
 
 
@@ -195,7 +201,7 @@ def results_document(
     tracking: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """An experiment's results; ``tracking``: the overhead tracks' figures
-    (:func:`activesurv_studies.tracking.track_metrics`)."""
+    (:func:`activesurv_evaluation.tracking.track_metrics`)."""
     doc: dict[str, Any] = {
         'set': set_name,
         'system': system,

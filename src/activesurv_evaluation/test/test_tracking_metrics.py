@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from activesurv_studies.tracking import Snapshot, track_metrics
+from activesurv_evaluation.tracking import Snapshot, track_metrics
 
 
 def _frames(

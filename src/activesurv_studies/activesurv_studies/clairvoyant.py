@@ -23,16 +23,21 @@ from typing import Any
 import numpy as np
 import yaml
 
-from activesurv_bringup.errors import ConfigError
-from activesurv_bringup.experiments.evaluation import observed_visibility
-from activesurv_common.occlusion import Obstacle, obstacles_from_list, plate_box
+from activesurv_common.occlusion import (
+    PLATE_HALF_SIZE,
+    Obstacle,
+    obstacles_from_list,
+    plate_box,
+)
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_dispatch.best_pose import Target, best_achievable_pose, view_batch
 from activesurv_dispatch.sensors import setup_from_dict
-from activesurv_recording.bagio import read_bag, run_info
+from activesurv_evaluation.results import observed_visibility
+from activesurv_recording.bagio import read_bag
+from activesurv_recording.errors import BagError
+from activesurv_recording.run_record import read_run_record
 
-OBJECT_HALF_SIZE = 0.03  # m: half side of an object's marker plates
 K = 3
 
 
@@ -40,20 +45,18 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
     """The run's assignment against the clairvoyant and greedy ones (see the module).
 
     Raises:
-        ConfigError: for a run without the believed set-up (``rig/setup.yaml``) or results.
+        BagError: for a run without the believed set-up (``rig/setup.yaml``) or results.
     """
     try:
         doc = json.loads((run_dir / 'results.json').read_text())
         setup_data = yaml.safe_load((run_dir / 'rig' / 'setup.yaml').read_text())
     except (OSError, ValueError, yaml.YAMLError) as exc:
-        raise ConfigError(f'{run_dir}: no results.json or rig/setup.yaml: {exc}') from exc
+        raise BagError(f'{run_dir}: no results.json or rig/setup.yaml: {exc}') from exc
     bag = run_dir / 'bag'
-    info = run_info(bag)
-    setup = setup_from_dict(setup_data, str(info.get('system') or doc.get('system') or 'fast'))
+    record = read_run_record(bag)
+    setup = setup_from_dict(setup_data, record.system)
     model = SensorModel.load()
-    obstacles = list(
-        obstacles_from_list(info.get('obstacles', (info.get('setup') or {}).get('obstacles')))
-    )
+    obstacles = list(obstacles_from_list(list(record.obstacles)))
     joints = {s.camera_id: TimeSeries(len(s.joint_names), capacity=10**7) for s in setup.sensors}
     names = {f'/{s.camera_id}/stage/joint_states': s for s in setup.sensors}
     lanes: dict[int, TimeSeries] = {}
@@ -69,7 +72,7 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
         by_name = dict(zip(m.msg.name, m.msg.position, strict=False))
         if all(j in by_name for j in s.joint_names):
             joints[s.camera_id].add(t, [by_name[j] for j in s.joint_names])
-    origin = float(info.get('time_origin') or 0.0)
+    origin = record.time_origin
     settle = 0.1
     rows = []
     previous = None
@@ -85,7 +88,7 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
         for series in lanes.values():
             v = series.at(tj, 0.5)
             if v is not None and v[6] > 0.5 and np.linalg.norm(v[:3] - position) > 1e-3:
-                others.append(plate_box(v[:3], v[3:6], OBJECT_HALF_SIZE))
+                others.append(plate_box(v[:3], v[3:6], PLATE_HALF_SIZE))
         occluders: list[Obstacle] = obstacles + others
         seen, blind = {}, {}
         for s in setup.sensors:

@@ -1,18 +1,9 @@
-"""Evaluate recorded runs and report them like the paper's Figs. 10-15.
-
-From a bag alone (the orchestrator stores the run's description in it):
-
-* truth: ``object_state`` (the xy table's side marker and normal), interpolated to each demand
-  instant;
-* assignment: the ``capture_request`` of each demand;
-* visibility (eq. 2): from the ``marker_observations`` that succeeded, with each camera's pose at
-  the exposure, for the true target;
-* estimate, faulty cameras, status: the ``target_estimate`` of each demand; its latency is its
-  bag time minus the demand instant.
+"""Report recorded runs like the paper's Figs. 10-15.
 
 A directory of runs gives one report: ``report.md``, plots of visibility, position error and
 orientation error over the demand instants (static, medium, fast; Sets A and B), and
-``summary.json``.
+``summary.json``; a session's runs give the session report (:mod:`.session_report`). Runs
+without a ``results.json`` are evaluated from their bags first (:mod:`.runs`).
 """
 
 from __future__ import annotations
@@ -25,171 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.errors import BagError
-from activesurv_bringup.experiments.evaluation import (
-    PredictionLog,
-    results_document,
-    summary,
-    write_results,
-)
-from activesurv_bringup.experiments.records import (
-    demand_record,
-    msg_stamp,
-    msg_vector,
-    run_obstacles,
-)
-from activesurv_bringup.experiments.surveil import evaluate_surveil, write_surveil_report
-from activesurv_common.sensor_model import SensorModel
-from activesurv_common.timeseries import TimeSeries
-from activesurv_hardware.stage_faults import StageFaults
+from activesurv_evaluation.results import summary
+from activesurv_evaluation.runs import find_runs, load_run, run_bag
+from activesurv_evaluation.session_report import write_surveil_report
+from activesurv_evaluation.timing import largest_wait, plot_budget
 from activesurv_liveview.demand_frames import failed_demand_frames
 from activesurv_liveview.scene import plot_scene
-from activesurv_recording.bagio import read_bag, run_info
-from activesurv_studies.tracking import TrackRecorder
-
-TOPICS = {
-    '/object_state',
-    '/object_tracks',
-    '/capture_request',
-    '/marker_observations',
-    '/target_estimate',
-    '/demand_horizon',
-    '/diagnostics',
-}
-
-
-def evaluate_bag(bag: Path, partial: bool = False) -> dict[str, Any]:
-    """The results document of one recorded run (``partial``: stopped early by a signal, so
-    the demands its truth covers).
-
-    Raises:
-        BagError: for a missing, damaged or foreign bag.
-    """
-    info = run_info(bag)
-    times = [float(t) for t in info['demand_times']]
-    # A hardware run: its demand instants are wall clock, run time 0 at ``time_origin``.
-    origin = float(info.get('time_origin') or 0.0)
-    truthless = info.get('mode') == 'hardware' and not info.get('truth')
-    truth = TimeSeries(6, capacity=10**7)
-    requests: dict[int, Any] = {}
-    observations: dict[int, list[Any]] = {}
-    estimates: dict[int, tuple[Any, int]] = {}
-    predicted = PredictionLog()
-    tracked = TrackRecorder()
-    faults = StageFaults()
-    for m in read_bag(bag, TOPICS):
-        if m.topic == '/demand_horizon':
-            made = msg_stamp(m.msg)
-            for d in m.msg.demands:
-                p = d.pose.pose.position
-                predicted.add(made, int(d.index), (p.x, p.y, p.z), d.pose.covariance)
-        elif m.topic == '/object_state':
-            truth.add(
-                msg_stamp(m.msg),
-                np.r_[msg_vector(m.msg.side_marker), msg_vector(m.msg.side_normal)],
-            )
-            tracked.on_truth(msg_stamp(m.msg), m.msg)
-        elif m.topic == '/object_tracks':
-            tracked.on_tracks(msg_stamp(m.msg), m.msg)
-        elif m.topic == '/capture_request':
-            requests.setdefault(int(m.msg.demand_index), m.msg)
-        elif m.topic == '/marker_observations':
-            observations.setdefault(int(m.msg.demand_index), []).append(m.msg)
-        elif m.topic == '/target_estimate':
-            estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
-        elif m.topic == '/diagnostics':
-            faults.hear(msg_stamp(m.msg) - origin, m.msg)
-    if len(truth) == 0 and not truthless and not partial:
-        raise BagError(f'bag {bag} has no object_state: no ground truth to evaluate against')
-    model = SensorModel.load()
-    obstacles = run_obstacles(info)
-    records = []
-    last_truth = truth.latest_time
-    for j, t_run in enumerate(times):
-        tj = origin + t_run
-        s = truth.at(tj, hold=0.5) if not truthless else np.full(6, np.nan)
-        if s is None and (partial or (last_truth is not None and tj > last_truth + 0.5)):
-            break  # the run was stopped (a signal) before this instant: the demands so far
-        if s is None:
-            raise BagError(f'no ground truth near demand {j} at {t_run:.2f} s')
-        rec = demand_record(
-            j,
-            tj,
-            s,
-            requests.get(j),
-            observations.get(j, []),
-            estimates.get(j),
-            model,
-            obstacles,
-            float(info.get('marker_radius', 0.0125)),
-        )
-        rec.t = t_run
-        rec.predictions = predicted.picks(j, tj)
-        records.append(rec)
-    doc = results_document(
-        str(info['set']),
-        str(info['system']),
-        records,
-        {
-            'seed': info.get('seed'),
-            'mode': info.get('mode', 'graph'),
-            'predictor': info.get('predictor', 'ca'),
-            'faults': info.get('faults', []),
-            # The simulated hardware and what the system was told (None: round-1 runs).
-            **{k: info.get(k) for k in ('rig', 'rig_source', 'rig_seed', 'calibration')},
-            # Where the truth comes from: the simulator, or a real table's controller.
-            'truth': info.get('truth') if info.get('mode') == 'hardware' else 'simulator',
-            **({'hardware': info['hardware']} if 'hardware' in info else {}),
-            # A stage controller's faults (stall, controller lost, e-stop) and when they cleared.
-            **({'stage_faults': faults.events} if faults.events else {}),
-            # A run stopped by a signal: how many demands it was to answer.
-            **({'demands_planned': len(times)} if len(records) < len(times) else {}),
-        },
-        tracked.metrics() if not truthless else None,
-    )
-    if truthless:  # nothing measured the object: no truth columns at all
-        for row in doc['demands']:
-            for key in ('true_position', 'true_normal', 'position_error', 'orientation_error'):
-                row.pop(key, None)
-    return doc
-
-
-def find_runs(path: Path) -> list[Path]:
-    """Run directories under ``path`` (a run has ``bag/`` or ``results.json``), or ``path``."""
-    if (
-        (path / 'bag').is_dir()
-        or (path / 'results.json').is_file()
-        or (path / 'metadata.yaml').is_file()
-    ):
-        return [path]
-    return sorted(
-        p
-        for p in path.iterdir()
-        if p.is_dir() and ((p / 'bag').is_dir() or (p / 'results.json').is_file())
-    )
-
-
-def load_run(
-    run: Path, refresh: bool = True, write: bool = True, partial: bool = False
-) -> dict[str, Any]:
-    """The results of a run: from its bag (writing results.json unless ``write`` is False) or,
-    without ``refresh`` and with a results.json, from that. ``partial``: the run was stopped
-    early (a signal); the demands whose instant its truth covers, none if it has none."""
-    bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
-    have = (run / 'results.json').is_file()
-    if bag.is_dir() and (refresh or not have):
-        if run_info(bag).get('mode') == 'surveil':
-            doc = evaluate_surveil(bag)
-        else:
-            doc = evaluate_bag(bag, partial)
-        if write:
-            out = run.parent if bag == run else run
-            write_results(out / 'results.json', doc)
-        return doc
-    try:
-        return dict(json.loads((run / 'results.json').read_text()))
-    except (OSError, ValueError) as exc:
-        raise BagError(f'{run}: neither a bag nor a readable results.json') from exc
+from activesurv_recording.errors import BagError
+from activesurv_recording.run_record import read_run_record
 
 
 def summary_table(docs: Sequence[dict[str, Any]]) -> str:
@@ -337,6 +171,13 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
         p = plot_predictions(d, out_dir / f'predictions_{d["set"]}_{d["system"]}.png')
         if p is not None:
             plots.append(p)
+        p = plot_budget(
+            d['demands'],
+            out_dir / f'latency_{d["set"]}_{d["system"]}.png',
+            f'Set {d["set"]} {d["system"]}: latency budget',
+        )
+        if p is not None:
+            plots.append(p)
     plots += sorted(out_dir.glob('scene_*.png'))  # drawn from the bags' frame trees
     frames = sorted(out_dir.glob('failed_*.png'))  # the frames behind failed demands
     table = summary_table(docs)
@@ -377,6 +218,12 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
             f'- Set {d["set"]}, {d["system"]}: faulty cameras {faulty or "none"}; '
             f'demands without an estimate {failed or "none"}' + offsets_line(d)
         )
+        wait = largest_wait(r['timing'] for r in d['demands'] if r.get('timing'))
+        if wait is not None:
+            lines.append(
+                f'  - latency: the largest wait is {wait[0]} (median {1e3 * wait[1]:.1f} ms '
+                'after the step before it)'
+            )
         for e in d.get('stage_faults', []):
             what = f'fault: {e["why"]}' if e['why'] else 'fault cleared'
             lines.append(f'  - {e["stage"]} at run time {e["t"]:.2f} s: {what}')
@@ -511,7 +358,7 @@ def _scenes(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> 
     """``scene_<set>_<system>.png``: the rig from each graph run's frame tree, at its middle
     demand (runs recorded before the frame tree existed have none)."""
     for run, doc in zip(runs, docs, strict=True):
-        bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
+        bag = run_bag(run)
         rows = doc.get('demands', [])
         if not (bag / 'metadata.yaml').is_file() or not rows or doc.get('mode') == 'surveil':
             continue
@@ -528,13 +375,13 @@ def _scenes(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> 
 def _failed_frames(runs: Sequence[Path], docs: Sequence[dict[str, Any]], out: Path) -> None:
     """``failed_<set>_<system>_d<j>_<cam>.png``: the recorded frames of failed demands."""
     for run, doc in zip(runs, docs, strict=True):
-        bag = run if (run / 'metadata.yaml').is_file() else run / 'bag'
+        bag = run_bag(run)
         rows = doc.get('demands', [])
         failed = [int(r['index']) for r in rows if r.get('status') != 'ok']
         asked = {c for r in rows for c in [*r.get('assigned', []), *r.get('cameras', [])]}
         if not failed or not (bag / 'metadata.yaml').is_file():
             continue
-        told = run_info(bag).get('imagers') or {}
+        told = read_run_record(bag).imagers
         delays = {c: float(told.get(c, {}).get('exposure_delay', 0.0)) for c in asked}
         try:
             failed_demand_frames(

@@ -1,0 +1,212 @@
+"""Each demand's latency budget, from the times its messages reached the recorder.
+
+A bag holds every message with the time the recorder received it (on the run's clock: the
+simulated clock, interpolated between ``/clock`` ticks, or the wall clock on a rig). For each
+demand, in seconds after its instant (``null`` where a step did not happen or its messages are
+not in the bag):
+
+* ``stage_state``: the last assigned camera's first stage state stamped at or after the
+  instant (where the camera was when the frame was taken);
+* ``frames``: each camera's frame for the demand (the frame stamped at the instant plus the
+  observation's ``frame_offset``); hardware runs keep no camera frames by default: ``{}``;
+* ``observations``: each camera's marker observation;
+* ``estimate``: the fused estimate (the demand's ``latency``).
+
+:func:`largest_wait` names the step that took longest after the one before it.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+STAMP_TOLERANCE = 2e-4  # s: a frame's stamp against instant + frame_offset
+
+
+def _stamp(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+
+
+class _Arrivals:
+    """(stamp, receive time) of one topic, sorted by stamp."""
+
+    def __init__(self) -> None:
+        self.stamps: list[float] = []
+        self.received: list[float] = []
+
+    def add(self, stamp: float, received: float) -> None:
+        if self.stamps and stamp < self.stamps[-1]:
+            i = bisect.bisect_right(self.stamps, stamp)
+            self.stamps.insert(i, stamp)
+            self.received.insert(i, received)
+        else:
+            self.stamps.append(stamp)
+            self.received.append(received)
+
+    def first_at_or_after(self, t: float) -> float | None:
+        i = bisect.bisect_left(self.stamps, t - 1e-6)
+        return self.received[i] if i < len(self.stamps) else None
+
+    def stamped(self, t: float) -> float | None:
+        i = bisect.bisect_left(self.stamps, t - STAMP_TOLERANCE)
+        if i < len(self.stamps) and abs(self.stamps[i] - t) <= STAMP_TOLERANCE:
+            return self.received[i]
+        return None
+
+
+def step_topics(cameras: Iterable[str]) -> set[str]:
+    """The topics :class:`StepTimes` hears besides observations and estimates."""
+    out: set[str] = set()
+    for c in cameras:
+        out |= {f'/{c}/stage/joint_states', f'/{c}/image_raw'}
+    return out
+
+
+class StepTimes:
+    """Receive times of the stage states and frames of a run (see the module)."""
+
+    def __init__(self) -> None:
+        self._states: dict[str, _Arrivals] = {}
+        self._frames: dict[str, _Arrivals] = {}
+
+    def hear(self, topic: str, msg: Any, received: float) -> bool:
+        """Note a stage state or frame; False for any other topic."""
+        parts = topic.split('/')
+        if topic.endswith('/stage/joint_states') and len(parts) == 4:
+            self._states.setdefault(parts[1], _Arrivals()).add(_stamp(msg), received)
+            return True
+        if topic.endswith('/image_raw') and len(parts) == 3:
+            self._frames.setdefault(parts[1], _Arrivals()).add(_stamp(msg), received)
+            return True
+        return False
+
+    def timing(
+        self,
+        instant: float,
+        assigned: Sequence[str],
+        observations: Sequence[tuple[Any, float]],
+        estimate_received: float | None,
+    ) -> dict[str, Any]:
+        """The demand's budget: ``observations`` are (message, receive time) pairs."""
+        states = [
+            s.first_at_or_after(instant)
+            for c in assigned
+            if (s := self._states.get(c)) is not None
+        ]
+        frames: dict[str, float] = {}
+        seen: dict[str, float] = {}
+        for o, received in observations:
+            cam = str(o.camera_id)
+            seen.setdefault(cam, received - instant)
+            arrivals = self._frames.get(cam)
+            if arrivals is None or int(o.status) == 3:  # no frame recorded, or none taken
+                continue
+            got = arrivals.stamped(instant + float(getattr(o, 'frame_offset', 0.0)))
+            if got is not None:
+                frames[cam] = got - instant
+        known = [s for s in states if s is not None]
+        return {
+            'stage_state': max(known) - instant if known and len(known) == len(states) else None,
+            'frames': frames,
+            'observations': seen,
+            'estimate': None if estimate_received is None else estimate_received - instant,
+        }
+
+
+def empty_timing(latency: float | None = None) -> dict[str, Any]:
+    """A demand's budget where nothing was recorded (lockstep: no messages)."""
+    return {'stage_state': None, 'frames': {}, 'observations': {}, 'estimate': latency}
+
+
+STEPS = ('stage_state', 'frames', 'observations', 'estimate')
+
+
+def budget(timing: dict[str, Any]) -> list[tuple[str, float]]:
+    """The budget as consecutive segments (name, s): until the stage state, the last frame,
+    the last observation, the estimate; each from the end of the one before (a step that did
+    not happen is skipped)."""
+    marks = [
+        ('stage state', timing.get('stage_state')),
+        ('frames', max(timing['frames'].values()) if timing.get('frames') else None),
+        (
+            'observations',
+            max(timing['observations'].values()) if timing.get('observations') else None,
+        ),
+        ('fusion', timing.get('estimate')),
+    ]
+    out = []
+    before = 0.0
+    for name, t in marks:
+        if t is None:
+            continue
+        out.append((name, max(0.0, float(t) - before)))
+        before = max(before, float(t))
+    return out
+
+
+def largest_wait(timings: Iterable[dict[str, Any]]) -> tuple[str, float] | None:
+    """The segment with the largest median over the demands (name, median s)."""
+    from statistics import median
+
+    rows: dict[str, list[float]] = {}
+    for t in timings:
+        for name, seg in budget(t):
+            rows.setdefault(name, []).append(seg)
+    if not rows:
+        return None
+    name = max(rows, key=lambda n: median(rows[n]))
+    return name, median(rows[name])
+
+
+SEGMENT_COLOURS = {
+    'stage state': '#8da0cb',
+    'frames': '#66c2a5',
+    'observations': '#fc8d62',
+    'fusion': '#e78ac3',
+}
+
+
+def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path | None:
+    """A stacked bar per demand (ms after its instant): until the stage state, the frames,
+    the observations, the estimate (``rows``: results.json demands). Returns ``path``, or None
+    when no demand has a timing."""
+    # matplotlib (heavy) only when a figure is drawn
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    bars = [(int(r['index']), budget(r['timing'])) for r in rows if r.get('timing')]
+    bars = [(j, b) for j, b in bars if b]
+    if not bars:
+        return None
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.25 * len(bars) + 2.0), 3.4))
+    shown: set[str] = set()
+    for x, (_, segments) in enumerate(bars):
+        bottom = 0.0
+        for name, seg in segments:
+            label = None if name in shown else name
+            shown.add(name)
+            ax.bar(x, 1e3 * seg, bottom=bottom, color=SEGMENT_COLOURS[name], label=label)
+            bottom += 1e3 * seg
+    ax.set_xticks(range(len(bars)))
+    ax.set_xticklabels(
+        [str(j) if len(bars) <= 40 or i % 10 == 0 else '' for i, (j, _) in enumerate(bars)],
+        fontsize=7,
+    )
+    ax.set_xlabel('demand')
+    ax.set_ylabel('ms after the instant')
+    wait = largest_wait(r['timing'] for r in rows if r.get('timing'))
+    ax.set_title(
+        title
+        + ('' if wait is None else f' (largest wait: {wait[0]}, median {1e3 * wait[1]:.1f} ms)'),
+        fontsize=9,
+    )
+    ax.legend(fontsize=7, ncol=4, loc='upper left')
+    ax.grid(axis='y', alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

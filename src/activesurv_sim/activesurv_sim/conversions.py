@@ -54,8 +54,8 @@ def table_states(table: XYTable | ObjectStream, t: float) -> list[tuple[int, int
     return [(1, 0, table.state(t))]
 
 
-# What a lab camera logs once it has sent its first frame (the lab reports ready on it).
-FIRST_FRAME = 'first frame sent'
+# What a lab camera logs once it is up (the lab reports ready when every camera has).
+DRIVER_UP = 'camera driver up'
 TABLE_ID = 'xy_table'  # the table as a two-axis stage (commissioning): xy_table/stage/...
 TABLE_JOINTS = ('table_x', 'table_y')
 

@@ -5,12 +5,12 @@ For the hardware-in-the-loop lab (``activesurv lab``). It exposes on its own wal
 controllers report it (``<camera_id>/stage/joint_states``, ``object_state``), and publishes best
 effort, as camera drivers do, each frame stamped on arrival: the exposure instant plus
 ``exposure_delay`` (exposure and read-out) plus Gaussian ``jitter`` plus its clock's
-``clock_offset``; ``drop_rate`` of the frames
-never arrive. Nothing here knows a capture request. Optics and mount come from the rig file
-(the truth), ``camera_info`` from the calibration the lab's driver ships (``camera_info_file``).
-What the carriage carries follows what the lab is used for: the object while something reports
-it (a hardware run's ``table_runner`` publishes ``object_state``), else the commissioning boards
-at the position the table controller reports (``xy_table/stage/joint_states``).
+``clock_offset``; ``drop_rate`` of the frames never arrive. Nothing here knows a capture
+request. Optics and mount come from the rig file (the truth), ``camera_info`` from the
+calibration the lab's driver ships (``camera_info_file``). What the carriage carries follows
+what the lab is used for: the object while something reports it (a hardware run's
+``table_runner`` publishes ``object_state``), else the commissioning boards at the position
+the table controller reports (``xy_table/stage/joint_states``).
 
 Parameters: those of ``sim_camera`` (``config/sim_camera.yaml``) and ``exposure_delay``,
 ``jitter``, ``drop_rate`` (see ``config/lab_camera.yaml``).
@@ -43,13 +43,8 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import ObjectState
-from activesurv_sim.conversions import (
-    FIRST_FRAME,
-    TABLE_ID,
-    TABLE_JOINTS,
-    published_model,
-    simulated_camera,
-)
+from activesurv_sim import conversions as conv
+from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
 
@@ -112,6 +107,7 @@ class LabCameraNode(Node):
             self.create_timer(1.0 / rate, self._expose, clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
         self.create_timer(10.0, self._say_rate, clock=steady)
+        self.get_logger().info(conv.DRIVER_UP)  # the lab reports ready when every camera has
 
     def _on_object(self, msg: ObjectState) -> None:
         self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg))
@@ -173,8 +169,6 @@ class LabCameraNode(Node):
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
         self.frames += 1
-        if self.frames == 1:  # the lab reports ready once every camera has sent one
-            self.get_logger().info(FIRST_FRAME)
 
     def _say_rate(self) -> None:
         """What the camera achieves on this machine (a busy one exposes less often)."""

@@ -48,7 +48,7 @@ from activesurv_common.trigger import Trigger
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
-from activesurv_sim.conversions import FIRST_FRAME, TABLE_ID, TABLE_JOINTS
+from activesurv_sim.conversions import DRIVER_UP, TABLE_ID, TABLE_JOINTS
 from activesurv_stages.config import motion_class
 from activesurv_stages.emulators import (
     EmulatorBase,
@@ -256,9 +256,9 @@ def camera_rates(logs: Path) -> list[str]:
 
 
 def _cameras_streaming(logs: Path) -> bool:
-    """Whether every camera driver of the lab has sent its first frame."""
+    """Whether every camera driver of the lab is up (its log says so)."""
     cams = sorted(logs.glob('*_camera.log'))
-    return bool(cams) and all(FIRST_FRAME in log.read_text(errors='replace') for log in cams)
+    return bool(cams) and all(DRIVER_UP in log.read_text(errors='replace') for log in cams)
 
 
 def run_lab(
@@ -323,8 +323,8 @@ def run_lab(
         while not stop.wait(0.2):
             launcher.check()  # NodeDiedError if a camera driver died
             if not ready.exists() and _cameras_streaming(out / 'logs'):
-                ready.write_text('every camera has sent a frame\n')
-                progress(f'lab ready: every camera streams ({ready})')
+                ready.write_text('every camera driver is up\n')
+                progress(f'lab ready: every camera driver is up ({ready})')
     finally:
         launcher.stop()
         for e in emulators:

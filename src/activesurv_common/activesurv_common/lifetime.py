@@ -55,9 +55,12 @@ def set_parent_death_signal(sig: int = signal.SIGTERM) -> bool:
         return False
 
 
-def child_preexec(parent_pid: int) -> None:
-    """``preexec_fn`` of a node process: die with the parent, even if it is already gone."""
+def child_preexec(parent_pid: int, nice: int = 0) -> None:
+    """``preexec_fn`` of a node process: die with the parent, even if it is already gone;
+    ``nice``: lower its CPU priority by that much (background work)."""
     set_parent_death_signal(signal.SIGTERM)
+    if nice > 0:
+        os.nice(nice)
     if os.getppid() != parent_pid:  # the parent died before the prctl above
         os.kill(os.getpid(), signal.SIGTERM)
 

@@ -10,7 +10,12 @@ not in the bag):
 * ``frames``: each camera's frame for the demand (the frame stamped at the instant plus the
   observation's ``frame_offset``); hardware runs keep no camera frames by default: ``{}``;
 * ``observations``: each camera's marker observation;
-* ``estimate``: the fused estimate (the demand's ``latency``).
+* ``estimate``: the fused estimate (the demand's ``latency``);
+* ``compute``: each camera's imager's own processing of its frame (detect, fit, pose; from
+  the observation's ``compute_time``; ``{}`` for bags from before it was carried).
+
+:func:`critical_compute` is the compute on a demand's critical path: the slowest of its
+cameras' processing (the cameras image in parallel, each on its own host on a rig).
 
 :func:`largest_wait` names the step that took longest after the one before it.
 """
@@ -97,9 +102,13 @@ class StepTimes:
         ]
         frames: dict[str, float] = {}
         seen: dict[str, float] = {}
+        compute: dict[str, float] = {}
         for o, received in observations:
             cam = str(o.camera_id)
             seen.setdefault(cam, received - instant)
+            spent = float(getattr(o, 'compute_time', 0.0))
+            if spent > 0.0:
+                compute.setdefault(cam, spent)
             arrivals = self._frames.get(cam)
             if arrivals is None or int(o.status) == 3:  # no frame recorded, or none taken
                 continue
@@ -112,12 +121,25 @@ class StepTimes:
             'frames': frames,
             'observations': seen,
             'estimate': None if estimate_received is None else estimate_received - instant,
+            'compute': compute,
         }
 
 
 def empty_timing(latency: float | None = None) -> dict[str, Any]:
     """A demand's budget where nothing was recorded (lockstep: no messages)."""
-    return {'stage_state': None, 'frames': {}, 'observations': {}, 'estimate': latency}
+    return {
+        'stage_state': None,
+        'frames': {},
+        'observations': {},
+        'estimate': latency,
+        'compute': {},
+    }
+
+
+def critical_compute(timing: dict[str, Any]) -> float | None:
+    """The slowest camera's processing of the demand's frame (s), or None if unknown."""
+    spent = (timing.get('compute') or {}).values()
+    return max(spent) if spent else None
 
 
 STEPS = ('stage_state', 'frames', 'observations', 'estimate')

@@ -26,6 +26,7 @@ the same way.
 from __future__ import annotations
 
 import math
+import time
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
@@ -291,6 +292,7 @@ class CaptureCore(Generic[F]):
                 why = f'no stage state for {self.joint_names} at {stamp:.3f} s'
                 return self._fail(r, stamp, ObservationStatus.NO_CAMERA_POSE, why, None)
             return None
+        started = time.thread_time()  # CPU: the work, not the waiting for a core
         try:
             gray = self._to_gray(frame)
         except VisionErrors as exc:
@@ -333,6 +335,7 @@ class CaptureCore(Generic[F]):
             obs = replace(
                 obs, position=obs.position + shift, motion_correction=shift, covariance=cov
             )
+        obs = replace(obs, compute_time=time.thread_time() - started)
         return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
 
 

@@ -111,6 +111,9 @@ def ellipse_from_conic(conic: ArrayLike) -> Ellipse:
     return Ellipse(np.asarray(center, dtype=np.float64), (a, b), angle)
 
 
+CONVERGED = 1e-7  # change of the unit-norm conic at which re-weighting stops
+
+
 def _direct_fit(x: Array, y: Array, w: Array) -> Array:
     """Weighted constrained fit (Halir-Flusser); returns the conic in the given coordinates."""
     D1 = np.column_stack([x * x, x * y, y * y]) * w[:, None]
@@ -224,7 +227,8 @@ def fit_ellipse(
             w = np.sqrt(_arc_weights(u, v, ell_n)) / np.maximum(grad, 1e-12)
             new = _direct_fit(u, v, w / w.max())
             new *= np.sign(new @ conic_n) / np.linalg.norm(new)
-            done = np.linalg.norm(new - conic_n / np.linalg.norm(conic_n)) < 1e-12
+            # Converged when the unit conic moves less than 1e-7 (the centre by ~1e-6 px).
+            done = np.linalg.norm(new - conic_n / np.linalg.norm(conic_n)) < CONVERGED
             conic_n = new
             if done:
                 break

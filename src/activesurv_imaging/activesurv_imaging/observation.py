@@ -52,6 +52,7 @@ class Observation:
     camera_pose: Transform | None = None
     frame_offset: float = 0.0  # s: exposure instant minus demand instant
     motion_correction: Array | None = None  # m added for the object's motion over the offset
+    compute_time: float = 0.0  # s: processing of the frame (detect, fit, pose)
 
 
 def failed(

@@ -40,6 +40,8 @@ class NodeSpec:
         host: the host (network namespace) it runs on; '' for this one.
         members: for a container (``module`` is :data:`CONTAINER_MODULE`), the nodes it runs
             in its one process; ``parameters`` and ``remappings`` are then unused.
+        nice: how much lower than the orchestrator's its CPU priority is (0: the same):
+            background work that must not take the CPU from the critical path of a demand.
     """
 
     name: str
@@ -50,6 +52,7 @@ class NodeSpec:
     required: bool = True
     host: str = ''
     members: tuple[NodeSpec, ...] = ()
+    nice: int = 0
 
     @property
     def fqn(self) -> str:
@@ -81,9 +84,9 @@ def process_rss_bytes(pid: int) -> int | None:
 CONTAINER_MODULE = 'activesurv_launch.container'
 
 
-def container(name: str, members: Sequence[NodeSpec], host: str = '') -> NodeSpec:
+def container(name: str, members: Sequence[NodeSpec], host: str = '', nice: int = 0) -> NodeSpec:
     """A container process running ``members`` (:mod:`activesurv_launch.container`)."""
-    return NodeSpec(name, CONTAINER_MODULE, host=host, members=tuple(members))
+    return NodeSpec(name, CONTAINER_MODULE, host=host, members=tuple(members), nice=nice)
 
 
 def members_document(members: Sequence[NodeSpec]) -> dict[str, Any]:
@@ -156,7 +159,8 @@ class NodeProcess:
             stderr=subprocess.STDOUT,
             env={**env, PARENT_ENV: str(parent)},
             start_new_session=True,
-            preexec_fn=lambda: child_preexec(parent),  # only prctl and getppid: fork-safe
+            # only prctl, nice and getppid: fork-safe
+            preexec_fn=lambda: child_preexec(parent, spec.nice),
         )
         self.stopped_on_purpose = False
 

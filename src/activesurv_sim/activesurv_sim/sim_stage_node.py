@@ -3,9 +3,11 @@
 Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); capture_request
     (activesurv_interfaces/CaptureRequest): at each demand instant of its camera the stage
     publishes its state stamped exactly then, as a controller that latches its encoders on the
-    camera's trigger line would, so camera and imager need not wait for the next sample; and
-    on the request, on ``sim/<camera_id>/planned_joint_states``, where it will be then if no
-    new goal comes (for the simulated camera's rendering ahead).
+    camera's trigger line would; and already on the request, stamped the instant, where its
+    commanded profile puts the axes then (again on every goal that changes it before the
+    instant), so the imager has the state at hand when the frame arrives; and on
+    ``sim/<camera_id>/planned_joint_states`` the same for the simulated camera's rendering
+    ahead.
 Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate`` and at
     the demand instants, /diagnostics.
 The axes follow the kinematics core on the node's clock (simulated time in experiments) with
@@ -105,6 +107,8 @@ class SimStageNode(Node):
                 self.counts['accepted'] += 1
             except LimitError as exc:
                 self._refuse(f'{joint}: goal refused: {exc}')
+        for t in [t for t, timer in self._triggers.items() if timer is not None and t > now]:
+            self._publish(t)  # the instant's state as the new profile has it
 
     def _on_request(self, msg: CaptureRequest) -> None:
         t = time_to_sec(msg.demand_instant)
@@ -113,6 +117,7 @@ class SimStageNode(Node):
             return
         self._triggers[t] = self.create_timer(t - now, lambda: self._trigger(t))
         self._publish_planned(t)
+        self._publish(t)  # where the commanded profile has the axes at the instant
 
     def _publish_planned(self, t: float) -> None:
         """Where the axes will be at ``t`` if no new goal comes (simulated cameras render

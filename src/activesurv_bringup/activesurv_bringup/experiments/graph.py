@@ -248,7 +248,14 @@ CAMERA_MODULES = (
     'activesurv_imaging.imager_node',
     'activesurv_stages.stage_bridge_node',
 )
-ALONE_MODULES = ('activesurv_recording.recorder_node', 'activesurv_sim.xy_table_node')
+ALONE_MODULES = (
+    'activesurv_recording.recorder_node',
+    'activesurv_sim.xy_table_node',
+    'activesurv_fusion.fusion_node',
+)
+# Groups whose work is not on a demand's critical path (tracking, planning ahead): at a
+# demand instant they yield the CPU to the cameras' imaging and to fusion.
+BACKGROUND = {'core': 10, 'overhead': 10}
 
 
 def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> list[NodeSpec]:
@@ -257,11 +264,13 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
     Each dynamic camera's stage, camera and imager share a container ``camN`` (with
     ``--hosts netns`` that is the camera's host): its frames go to its imager inside the
     process, and the cameras render and measure in parallel on separate cores. The overhead
-    camera and its locator share ``overhead``; predictor, dispatcher and fusion ``core``.
-    The recorder (its disk writes must not stall anyone), the xy table (it starts last and
-    owns /clock) and the nodes named in ``alone`` (nodes to kill and restart, load
-    generators) run as processes of their own. Start order is kept: a group starts where its
-    first member stood.
+    camera and its locator share ``overhead``; predictor and dispatcher ``core``; both run
+    at a lower CPU priority (:data:`BACKGROUND`: they plan ahead, and at a demand instant
+    the imagers and fusion are what the estimate waits for). The recorder (its disk writes
+    must not stall anyone), the xy table (it starts last and owns /clock), fusion (the last
+    step of every demand, never queued behind a replan) and the nodes named in ``alone``
+    (nodes to kill and restart, load generators) run as processes of their own. Start order
+    is kept: a group starts where its first member stood.
     """
     groups: dict[str, list[NodeSpec]] = {}
     order: list[NodeSpec | str] = []
@@ -283,7 +292,9 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
         elif len(groups[item]) == 1:
             out.append(groups[item][0])
         else:
-            out.append(container(item, groups[item], groups[item][0].host))
+            out.append(
+                container(item, groups[item], groups[item][0].host, BACKGROUND.get(item, 0))
+            )
     return out
 
 

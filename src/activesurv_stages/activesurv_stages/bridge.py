@@ -84,6 +84,7 @@ class BridgeWorker:
         self.home_on_connect = home_on_connect
         self._lock = threading.Lock()
         self._pending: dict[str, Goal] = {}
+        self._sent_since_poll = False  # goals went out after the last poll's reports
         self._last_goal: dict[str, Goal] = {}
         self._snap = Snapshot()
         self._counters = {
@@ -148,6 +149,13 @@ class BridgeWorker:
             return s.state is LinkState.READY and all(
                 s.statuses.get(j) in ('idle', 'fault') for j in self.axes
             )
+
+    def settled(self) -> bool:
+        """Standing still with no goal queued or sent since the last poll: the axes stay
+        where that poll found them until a new goal comes."""
+        still = self.standing_still()
+        with self._lock:
+            return still and not self._pending and not self._sent_since_poll
 
     def submit_goal(self, joint: str, position: float, velocity: float | None = None) -> Goal:
         """Queue a goal (the newest goal per joint wins).
@@ -331,6 +339,7 @@ class BridgeWorker:
                 self._snap.state = LinkState.READY
             goals = [] if self._estop else list(self._pending.values())
             self._pending.clear()
+            self._sent_since_poll = bool(goals)
         refused = [g for g in goals if g.joint in unhomed]
         together = getattr(driver, 'move_together', None)
         if together is not None and len(goals) - len(refused) > 1 and not refused:

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from sensor_msgs.msg import JointState
 
 from activesurv_interfaces.msg import StageGoal
+from activesurv_stages.bridge import LinkState, Snapshot
+from activesurv_stages.config import ControllerConfig
 
 
 def goal_items(msg: StageGoal) -> list[tuple[str, float, float | None]]:
@@ -35,3 +39,31 @@ def joint_state(
     msg.position = [float(p) for p in positions]
     msg.velocity = [float(v) for v in velocities]
     return msg
+
+
+def bridge_status(
+    camera_id: str,
+    cfg: ControllerConfig,
+    snap: Snapshot,
+    estop: bool,
+    extra: Mapping[str, Any],
+) -> DiagnosticStatus:
+    """A bridge's diagnostic status: link state, axes, counters, e-stop and ``extra`` keys."""
+    s = DiagnosticStatus(
+        name=f'activesurv/stage_bridge/{camera_id}', hardware_id=f'{cfg.protocol}:{cfg.port}'
+    )
+    s.level = {
+        LinkState.READY: DiagnosticStatus.OK,
+        LinkState.HOMING: DiagnosticStatus.WARN,
+        LinkState.DISCONNECTED: DiagnosticStatus.ERROR,
+    }[snap.state]
+    if any(v == 'fault' for v in snap.statuses.values()):
+        s.level = DiagnosticStatus.ERROR
+    s.message = snap.state.value + (f': {snap.last_error}' if snap.last_error else '')
+    if estop:
+        s.level = DiagnosticStatus.ERROR
+        s.message = 'e-stop raised: goals refused; ' + s.message
+    s.values = [KeyValue(key=k, value=str(v)) for k, v in sorted(snap.counters.items())]
+    s.values += [KeyValue(key=f'status/{j}', value=v) for j, v in sorted(snap.statuses.items())]
+    s.values += [KeyValue(key=k, value=str(v)) for k, v in extra.items()]
+    return s

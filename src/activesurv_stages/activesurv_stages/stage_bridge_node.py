@@ -2,9 +2,11 @@
 
 Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); estop (std_msgs/Bool,
     reliable + transient local: the rig's e-stop, ``<namespace>/estop``; while it is true every
-    goal is refused).
-Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState, SI) at the poll rate,
-    /diagnostics (link state, counters, last error, ``estop`` and ``standing_still``).
+    goal is refused); capture_request (its camera's demand instants).
+Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState, SI) at the poll rate, and
+    stamped a demand instant as soon as the axes stand still before it (the dispatcher holds
+    them still until then: :mod:`activesurv_stages.promises`), /diagnostics (link state,
+    counters, last error, ``estop``, ``standing_still``, promises kept and broken).
 Services: ~/stop (std_srvs/Trigger): stop every axis now (queued goals are dropped).
 Every way out (shutdown, SIGINT, SIGTERM, SIGHUP, the orchestrator gone) stops the axes with the
 protocol's own stop before the port is closed.
@@ -19,22 +21,23 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 from std_srvs.srv import Trigger
 
 from activesurv_common.ros import qos, topics
-from activesurv_common.ros.conversions import sec_to_time
+from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
-from activesurv_interfaces.msg import StageGoal
+from activesurv_interfaces.msg import CaptureRequest, StageGoal
 from activesurv_stages.bridge import BridgeWorker, LinkState
 from activesurv_stages.config import load_controller
-from activesurv_stages.conversions import goal_items, joint_state
+from activesurv_stages.conversions import bridge_status, goal_items, joint_state
 from activesurv_stages.drivers import make_driver
 from activesurv_stages.errors import StageError
+from activesurv_stages.promises import Promises
 
 PARAMS = (
     Param('config_file', '', 'controller YAML (required)'),
@@ -74,6 +77,10 @@ class StageBridgeNode(Node):
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
         self.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.ESTOP)
         self.create_service(Trigger, '~/stop', self._on_stop)
+        self.promises = Promises()
+        self.create_subscription(
+            CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
+        )
         self.create_timer(1.0 / cfg.poll_rate, self._publish)
         self.create_timer(1.0, self._publish_diagnostics)
         self._still_told = True  # whether standing still under the e-stop was published
@@ -89,6 +96,13 @@ class StageBridgeNode(Node):
         for reason in self.worker.submit_goals(list(goal_items(msg))):
             self.refusals += 1
             self.get_logger().warning(f'goal refused, nothing sent: {reason}')
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_request(self, msg: CaptureRequest) -> None:
+        if self.camera_id in msg.camera_ids:
+            self.promises.request(time_to_sec(msg.demand_instant), self._now())
 
     def _on_estop(self, msg: Bool) -> None:
         raised = bool(msg.data)
@@ -123,13 +137,19 @@ class StageBridgeNode(Node):
             else:
                 self.get_logger().warning(text)
             self._last_state = snap.state
+        names = [j for j in self.joints if j in snap.positions]
+        for t, q in self.promises.due(self._now(), self.worker.settled(), snap.positions):
+            self._pub.publish(
+                joint_state(names, [q[j] for j in names], [0.0] * len(names), sec_to_time(t))
+            )
         if snap.stamp == self._last_stamp or not snap.positions:
             return  # no new poll: publish only what the controller said
         self._last_stamp = snap.stamp
-        names = [j for j in self.joints if j in snap.positions]
         # Stamped when the controller reported (not when this timer fired, up to a poll period
         # later): what the imager and the truth interpolate at a frame's instant.
         stamp = self.get_clock().now().to_msg() if self._sim_time else sec_to_time(snap.wall)
+        for why in self.promises.check(time_to_sec(stamp), snap.positions):
+            self.get_logger().warning(why)
         self._pub.publish(
             joint_state(
                 names,
@@ -140,33 +160,17 @@ class StageBridgeNode(Node):
         )
 
     def _publish_diagnostics(self) -> None:
-        snap = self.worker.snapshot()
-        s = DiagnosticStatus(
-            name=f'activesurv/stage_bridge/{self.camera_id}',
-            hardware_id=f'{self.cfg.protocol}:{self.cfg.port}',
+        extra = {
+            'refused_goals': self.refusals,
+            'estop': str(self.worker.estop).lower(),
+            'standing_still': str(self.worker.standing_still()).lower(),
+            'namespace': self.get_namespace(),
+            'promises_kept': self.promises.kept,
+            'promises_broken': self.promises.broken,
+        }
+        s = bridge_status(
+            self.camera_id, self.cfg, self.worker.snapshot(), self.worker.estop, extra
         )
-        s.level = {
-            LinkState.READY: DiagnosticStatus.OK,
-            LinkState.HOMING: DiagnosticStatus.WARN,
-            LinkState.DISCONNECTED: DiagnosticStatus.ERROR,
-        }[snap.state]
-        if any(v == 'fault' for v in snap.statuses.values()):
-            s.level = DiagnosticStatus.ERROR
-        estop = self.worker.estop
-        s.message = snap.state.value + (f': {snap.last_error}' if snap.last_error else '')
-        if estop:
-            s.level = DiagnosticStatus.ERROR
-            s.message = 'e-stop raised: goals refused; ' + s.message
-        s.values = [KeyValue(key=k, value=str(v)) for k, v in sorted(snap.counters.items())]
-        s.values += [
-            KeyValue(key=f'status/{j}', value=v) for j, v in sorted(snap.statuses.items())
-        ]
-        s.values.append(KeyValue(key='refused_goals', value=str(self.refusals)))
-        s.values.append(KeyValue(key='estop', value=str(estop).lower()))
-        s.values.append(
-            KeyValue(key='standing_still', value=str(self.worker.standing_still()).lower())
-        )
-        s.values.append(KeyValue(key='namespace', value=self.get_namespace()))
         arr = DiagnosticArray(status=[s])
         arr.header.stamp = self.get_clock().now().to_msg()
         self._diag.publish(arr)

@@ -255,7 +255,7 @@ ALONE_MODULES = (
 )
 # Groups whose work is not on a demand's critical path (tracking, planning ahead): at a
 # demand instant they yield the CPU to the cameras' imaging and to fusion.
-BACKGROUND = {'core': 10, 'overhead': 10}
+BACKGROUND = {'core': 5, 'overhead': 5}
 
 
 def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> list[NodeSpec]:

@@ -1,0 +1,75 @@
+"""A demand's latency budget from the receive times of its messages (no ROS)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+from activesurv_evaluation.timing import (
+    StepTimes,
+    budget,
+    critical_compute,
+    empty_timing,
+    largest_wait,
+    plot_budget,
+)
+
+
+def _stamped(t: float) -> SimpleNamespace:
+    sec = int(t)
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=SimpleNamespace(sec=sec, nanosec=round((t - sec) * 1e9)))
+    )
+
+
+def _obs(
+    cam: str, offset: float = 0.0, status: int = 0, compute: float = 0.004
+) -> SimpleNamespace:
+    return SimpleNamespace(camera_id=cam, frame_offset=offset, status=status, compute_time=compute)
+
+
+def test_each_step_after_the_instant() -> None:
+    steps = StepTimes()
+    t = 10.0
+    # cam1: a promised state before the instant; cam2: its state 3 ms after it
+    assert steps.hear('/cam1/stage/joint_states', _stamped(9.95), 9.951)
+    assert steps.hear('/cam1/stage/joint_states', _stamped(t), 9.8)
+    assert steps.hear('/cam2/stage/joint_states', _stamped(t), 10.003)
+    assert steps.hear('/cam1/image_raw', _stamped(t), 10.005)
+    assert steps.hear('/cam2/image_raw', _stamped(t + 0.010), 10.018)  # free-running: +10 ms
+    assert not steps.hear('/marker_observations', _stamped(t), 10.02)
+    observed = [(_obs('cam1'), 10.011), (_obs('cam2', 0.010, compute=0.006), 10.025)]
+    timing = steps.timing(t, ['cam1', 'cam2'], observed, 10.027)
+    assert abs(timing['stage_state'] - 0.003) < 1e-9
+    assert abs(timing['frames']['cam1'] - 0.005) < 1e-9
+    assert abs(timing['frames']['cam2'] - 0.018) < 1e-9
+    assert abs(timing['observations']['cam2'] - 0.025) < 1e-9
+    assert abs(timing['estimate'] - 0.027) < 1e-9
+    assert critical_compute(timing) == 0.006
+    names = [n for n, _ in budget(timing)]
+    assert names == ['stage state', 'frames', 'observations', 'fusion']
+    assert abs(sum(s for _, s in budget(timing)) - 0.027) < 1e-9
+    assert largest_wait([timing])[0] == 'frames'  # 3 -> 18 ms
+
+
+def test_missing_steps_are_null() -> None:
+    steps = StepTimes()
+    timing = steps.timing(5.0, ['cam3'], [(_obs('cam3', status=3), 5.2)], None)
+    assert timing['stage_state'] is None
+    assert timing['frames'] == {}
+    assert timing['estimate'] is None
+    assert empty_timing(0.02)['estimate'] == 0.02
+    assert critical_compute(empty_timing()) is None
+    assert largest_wait([]) is None
+
+
+def test_the_budget_is_drawn(tmp_path: Path) -> None:
+    rows = [
+        {'index': j, 'timing': {'stage_state': 0.001, 'frames': {'cam1': 0.004},
+                                'observations': {'cam1': 0.01}, 'estimate': 0.012}}
+        for j in range(3)
+    ]  # fmt: skip
+    png = plot_budget(rows, tmp_path / 'latency.png', 'budget')
+    assert png is not None
+    assert png.stat().st_size > 1000
+    assert plot_budget([{'index': 0, 'timing': empty_timing()}], tmp_path / 'no.png', 'x') is None

@@ -16,6 +16,10 @@ calibration (so errors are the method's, not a calibration's):
   default: the issue's 10 minutes), ``surveil_estimated_fraction`` the demands with an estimate
   (``ok``, or ``partial``: fused from fewer cameras than assigned); ``surveil_not_ok`` and
   ``setA_fast_not_ok`` list the demands short of ok (or of k cameras) with their reasons.
+* ``latency_bound_ms``: what a free-running camera allows (issue 35): its delay (exposure and
+  read-out, 20 ms) plus the median wait for the first frame after the instant (half a frame
+  period) plus the compute on the critical path (the session's median of its slowest camera's
+  imaging CPU per demand); ``surveil_latency_to_bound`` = the session's median latency over it.
 """
 
 from __future__ import annotations
@@ -33,8 +37,9 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_bringup.rig.lab import table_controller
+from activesurv_bringup.rig.lab import EXPOSURE_DELAY, table_controller
 from activesurv_bringup.rig.rigs import nominal
+from activesurv_evaluation.timing import critical_compute
 from activesurv_sim.rig import save_rig
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
@@ -120,7 +125,11 @@ def run() -> dict[str, Any]:
             raise RuntimeError(r.stdout[-2000:] + r.stderr[-2000:])
         session = json.loads((d / 'session' / 'results.json').read_text())
         lat = [x['latency'] for x in session['demands'] if x.get('latency') is not None]
+        spent = [c for x in session['demands'] if (c := critical_compute(x.get('timing') or {}))]
+        bound = EXPOSURE_DELAY + 0.5 / LAB_RATE + (statistics.median(spent) if spent else 0.0)
         out.update(
+            latency_bound_ms=round(1e3 * bound, 1),
+            surveil_latency_to_bound=round(statistics.median(lat) / bound, 2) if lat else None,
             camera_rate_hz=LAB_RATE,
             surveil_seconds=SURVEIL_S,
             surveil_wall_seconds=round(wall, 1),

@@ -145,9 +145,7 @@ class DemandRecord:
             'frame_offsets': {c: float(v) for c, v in self.frame_offsets.items()},
             'object': self.object,
             'occluded': None if self.occluded is None else list(self.occluded),
-            'timing': self.timing
-            if self.timing.get('estimate') is not None or self.latency is None
-            else {**self.timing, 'estimate': self.latency},
+            'timing': self.timing,
         }
 
 

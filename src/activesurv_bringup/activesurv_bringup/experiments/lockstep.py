@@ -20,6 +20,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,25 +103,7 @@ def run_lockstep(
     # Dispatch, stages and imagers: the same session cores as the nodes (lockstep hears every
     # camera every step: liveness never expires).
     dispatcher = Dispatcher(exp.setup, exp.model, exp.dispatcher_config(math.inf))
-    cameras = {
-        s.camera_id: _Camera(
-            [
-                AxisSimulator(lim, float(q), 0.0)
-                for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
-            ],
-            Renderer(exp.true_camera(s.camera_id)[0]),
-            exp.true_camera(s.camera_id)[1],
-            CaptureCore(
-                exp.imager_config(s.camera_id, by_cam.get(s.camera_id)),
-                s.mount,
-                exp.model,
-                _identity,
-                s.camera,
-            ),
-        )
-        for s in exp.setup.sensors
-        if s.camera_id not in dead
-    }
+    cameras = _cameras(exp, by_cam, dead)
     fusion = exp.fusion_config()
     truth_obstacles = exp.rig.rig.obstacles if exp.rig is not None else ()
     fixtures = obstacle_plates(truth_obstacles)  # what the cameras really see
@@ -143,17 +126,7 @@ def run_lockstep(
             session.on_fix(t, fix.xy)
         session.tick(t)
         if track_log is not None:
-            seen = tracker.estimates(t, tracker.tracks_started)
-            present = tracker.workspace.contains(state[:2])  # on the table, not parked
-            track_log.append(
-                (
-                    Snapshot(
-                        t,
-                        tuple((e.object_id, float(e.xy[0]), float(e.xy[1])) for e in seen),
-                    ),
-                    Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
-                )
-            )
+            track_log.append(_snapshots(tracker, t, state))
         now_horizon = session.horizon(t)
         horizon: list[Demand] = []
         for p in now_horizon.demands:
@@ -182,9 +155,48 @@ def run_lockstep(
             if progress:
                 progress(len(records), len(exp.demand_times), done.demand.time)
 
-    truth = exp.demands_on(expected=False)
+    return _every_demand(exp, records, predicted)
+
+
+def _cameras(exp: Experiment, by_cam: dict[str, Fault], dead: set[str]) -> dict[str, _Camera]:
+    """The simulated stages, renderer and capture core of every camera that is alive."""
+    return {
+        s.camera_id: _Camera(
+            [
+                AxisSimulator(lim, float(q), 0.0)
+                for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
+            ],
+            Renderer(exp.true_camera(s.camera_id)[0]),
+            exp.true_camera(s.camera_id)[1],
+            CaptureCore(
+                exp.imager_config(s.camera_id, by_cam.get(s.camera_id)),
+                s.mount,
+                exp.model,
+                _identity,
+                s.camera,
+            ),
+        )
+        for s in exp.setup.sensors
+        if s.camera_id not in dead
+    }
+
+
+def _snapshots(tracker: Any, t: float, state: Array) -> tuple[Snapshot, Snapshot]:
+    """The overhead tracks and the truth at ``t`` (for the tracking metrics)."""
+    seen = tracker.estimates(t, tracker.tracks_started)
+    present = tracker.workspace.contains(state[:2])  # on the table, not parked
+    return (
+        Snapshot(t, tuple((e.object_id, float(e.xy[0]), float(e.xy[1])) for e in seen)),
+        Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
+    )
+
+
+def _every_demand(
+    exp: Experiment, records: dict[int, DemandRecord], predicted: PredictionLog
+) -> list[DemandRecord]:
+    """A record for every demand of the experiment (those never captured say so)."""
     out_records = []
-    for d in truth:
+    for d in exp.demands_on(expected=False):
         r = records.get(d.index)
         if r is None:
             r = DemandRecord(

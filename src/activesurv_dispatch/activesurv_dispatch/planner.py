@@ -57,10 +57,10 @@ from activesurv_dispatch.best_pose import (
     best_achievable_pose,
     camera_frames,
     view_batch,
+    visibility_at_poses,
 )
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.sensors import Sensor, Setup
-from activesurv_dispatch.visibility import fused_visibility
 from activesurv_stages.kinematics import min_travel_time
 
 Array = NDArray[np.float64]
@@ -573,18 +573,11 @@ class DispatchPlanner:
 
     def fused_visibility(self, demand: Demand, poses: dict[str, Array]) -> float:
         """v_f (eq. 2) of cameras at ``poses`` for ``demand``; out-of-view cameras add nothing."""
-        Rs = []
-        for c, q in poses.items():
-            s = self.sensors[c]
-            _, R = camera_frames(s, np.asarray(q)[None, :])
-            _, d, b, inside = view_batch(
-                s,
-                np.asarray(q)[None, :],
-                demand.target,
-                self.setup.marker_radius,
-                self.model,
-                occluders=self.occluders(demand),
-            )
-            if inside[0]:
-                Rs.append(self.model.world_covariance(float(d[0]), float(b[0]), R[0]))
-        return fused_visibility(Rs)
+        return visibility_at_poses(
+            self.sensors,
+            self.model,
+            dict(poses),
+            demand.target,
+            self.setup.marker_radius,
+            self.occluders(demand),
+        )

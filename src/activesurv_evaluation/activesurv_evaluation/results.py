@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.geometry import Transform
 from activesurv_common.sensor_model import SensorModel
-from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
+from activesurv_dispatch.best_pose import Target, visibility_at_poses
 from activesurv_dispatch.sensors import Setup
 from activesurv_dispatch.visibility import fused_visibility
 from activesurv_evaluation.timing import empty_timing
@@ -71,14 +71,10 @@ def observed_visibility(
 ) -> float:
     """v_f (eq. 2) of the cameras at ``poses`` (those that imaged the marker), true target."""
     target = Target(np.asarray(position, float), np.asarray(normal, float))
-    Rs = []
-    for cid, q in poses.items():
-        s = setup.sensor(cid)
-        qq = np.asarray(q, float)[None, :]
-        _, d, b, _ = view_batch(s, qq, target, setup.marker_radius, model)
-        _, R = camera_frames(s, qq)
-        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
-    return fused_visibility(Rs)
+    sensors = {s.camera_id: s for s in setup.sensors}
+    return visibility_at_poses(
+        sensors, model, dict(poses), target, setup.marker_radius, only_in_view=False
+    )
 
 
 @dataclass

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.geometry import bearings
 from activesurv_common.occlusion import Obstacle, blocked, inflate
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.sensors import Sensor
@@ -82,8 +83,7 @@ def view_batch(
     rel = target.position[None, :] - centres
     d = np.linalg.norm(rel, axis=1)
     p = np.einsum('nji,nj->ni', R, rel)  # marker centre in each camera frame
-    cos_b = np.clip(-(rel @ target.normal) / np.maximum(d, 1e-12), -1.0, 1.0)
-    bearing = np.arccos(cos_b)
+    bearing = bearings(-rel, target.normal)
     cam = sensor.camera
     z = np.maximum(p[:, 2], 1e-9)
     u = cam.fx * p[:, 0] / z + cam.cx

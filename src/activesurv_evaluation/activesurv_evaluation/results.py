@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_common.geometry import Transform
+from activesurv_common.geometry import Transform, bearing
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import Target, visibility_at_poses
 from activesurv_dispatch.sensors import Setup
@@ -56,9 +56,7 @@ def visibility_from_transforms(
     Rs = []
     for T in cameras:
         rel = T.t - c
-        d = float(np.linalg.norm(rel))
-        bearing = math.acos(max(-1.0, min(1.0, float(n @ rel) / d)))
-        Rs.append(model.world_covariance(d, bearing, T.R))
+        Rs.append(model.world_covariance(float(np.linalg.norm(rel)), bearing(rel, n), T.R))
     return fused_visibility(Rs)
 
 

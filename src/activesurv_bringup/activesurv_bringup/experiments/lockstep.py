@@ -35,10 +35,8 @@ from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher
 from activesurv_evaluation.results import DemandRecord, PredictionLog, observed_visibility
 from activesurv_evaluation.tracking import Snapshot
-from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
+from activesurv_fusion.collector import Answer, DemandBatch, camera_answer, resolve
 from activesurv_fusion.config import FusionConfig
-from activesurv_fusion.errors import InvalidReadingError
-from activesurv_fusion.pose_fusion import PoseReading
 from activesurv_imaging.capture import CaptureCore
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
@@ -266,20 +264,17 @@ def _capture(
         cam.imager.add_joints(tj, q)
         obs = cam.imager.poll(tj)[0]
         offsets[cid] = obs.frame_offset
-        if (
-            obs.status is not ObservationStatus.OK
-            or obs.position is None
-            or obs.normal is None
-            or obs.covariance is None
-        ):
-            answers[cid] = Answer(cid, Outcome.FAILED, None, f'{obs.status.name}: {obs.reason}')
-            continue
-        poses[cid] = q  # it imaged the marker: it counts for the observed visibility
-        try:
-            reading = PoseReading.create(cid, obs.position, obs.normal, obs.covariance)
-            answers[cid] = Answer(cid, Outcome.OK, reading)
-        except InvalidReadingError as exc:
-            answers[cid] = Answer(cid, Outcome.FAILED, None, str(exc))
+        ok = obs.status is ObservationStatus.OK
+        answers[cid] = camera_answer(
+            cid,
+            ok,
+            obs.position,
+            obs.normal,
+            obs.covariance,
+            obs.reason or f'status {obs.status.value}',
+        )
+        if ok and obs.position is not None:
+            poses[cid] = q  # it imaged the marker: it counts for the observed visibility
     batch = DemandBatch(capture.demand.index, tj, tuple(capture.cameras), answers)
     result = resolve(batch, z=fusion.z_sigma, max_faulty=fusion.faulty_limit)
     rec = DemandRecord(capture.demand.index, tj, truth.side.copy(), truth.side_normal.copy())

@@ -332,3 +332,19 @@ def test_no_module_only_forwards_names(package: str) -> None:
         if _only_forwards(ast.parse(p.read_text(), str(p)))
     ]
     assert not bad, f'modules that only forward names: {bad}'
+
+
+FUNCTION_LINE_LIMIT = 100
+
+
+def test_no_function_does_several_jobs() -> None:
+    """Functions over ~100 lines do several jobs: split them (tests excepted)."""
+    long = []
+    for package in PACKAGES:
+        for p in modules(package):
+            for node in ast.walk(ast.parse(p.read_text(), str(p))):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    n = (node.end_lineno or node.lineno) - node.lineno + 1
+                    if n > FUNCTION_LINE_LIMIT:
+                        long.append(f'{p.relative_to(SRC)}: {node.name} {n} lines')
+    assert not long, '\n'.join(long)

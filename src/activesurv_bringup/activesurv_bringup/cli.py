@@ -84,7 +84,17 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument('--version', action='version', version=f'activesurv {__version__}')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
+    _experiment_parser(sub)
+    _surveil_parser(sub)
+    _run_tool_parsers(sub)
+    _commission_parser(sub)
+    _lab_parser(sub)
+    _rig_tool_parsers(sub)
+    return parser
 
+
+def _experiment_parser(sub: Any) -> None:
+    """The parser of the experiment command: one of the paper's sets, graph or lockstep."""
     exp = _sub(sub, 'experiment', help="run one of the paper's experiments")
     exp.add_argument(
         '--set',
@@ -157,6 +167,9 @@ def _build_parser() -> argparse.ArgumentParser:
         help='graph mode with every node in this process (one executor)',
     )
 
+
+def _surveil_parser(sub: Any) -> None:
+    """The parser of the surveil command: continuous surveillance."""
     sv = _sub(
         sub, 'surveil', help='continuous surveillance: objects one after another, until stopped'
     )
@@ -209,6 +222,9 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_rig(sv)
     _add_hardware(sv)
 
+
+def _run_tool_parsers(sub: Any) -> None:
+    """The parser of replay, report and demo."""
     rpl = _sub(sub, 'replay', help='re-run imaging and fusion on a recorded run')
     rpl.add_argument('bag', type=Path, help='a recorded run: its bag, or the run directory')
     rpl.add_argument('--out', type=Path, required=True, help='output directory (new or empty)')
@@ -243,6 +259,9 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument('--dds-profile', default=None, help=DDS_PROFILE_HELP)
     _add_rig(demo)
 
+
+def _commission_parser(sub: Any) -> None:
+    """The parser of the commission command."""
     com = _sub(
         sub,
         'commission',
@@ -281,6 +300,9 @@ def _build_parser() -> argparse.ArgumentParser:
         'commission.json) (default: all, 16 or so per camera)',
     )
 
+
+def _lab_parser(sub: Any) -> None:
+    """The parser of the lab command: an emulated lab."""
     lab = _sub(
         sub,
         'lab',
@@ -325,6 +347,9 @@ def _build_parser() -> argparse.ArgumentParser:
         help="a lab camera's clock ahead of the host's (s): its stamps are off by it",
     )
 
+
+def _rig_tool_parsers(sub: Any) -> None:
+    """The parser of stop, hardware, rig, bag and stages."""
     stop = _sub(
         sub,
         'stop',
@@ -357,7 +382,6 @@ def _build_parser() -> argparse.ArgumentParser:
     from activesurv_stages.cli import add_arguments
 
     add_arguments(stages.add_subparsers(dest='stages_command', required=True))
-    return parser
 
 
 def _add_foxglove(parser: argparse.ArgumentParser) -> None:
@@ -881,112 +905,129 @@ def _dispatch(args: argparse.Namespace) -> None:
         rig_file = read(args.hardware)
         what = args.hardware_command if args.command == 'hardware' else args.command
         confirm_motion(rig_file, what, args.yes, args.home or rig_file.home)
-    if args.command == 'experiment':
-        experiment(
-            args.set_name,
-            args.system,
-            args.out,
-            args.seed,
-            args.mode,
-            args.trajectory,
-            args.expect,
-            run_options(args),
-            args.predictor,
-            args.rig,
-            args.calibration,
-            args.rig_seed,
-            args.hardware,
-            args.home,
-            not args.no_motion_correction,
-        )
-    elif args.command == 'surveil':
-        from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
-        from activesurv_bringup.rig.choice import choose
+    COMMANDS[args.command](args)
 
-        new_output_dir(args.out)  # refused before anything is commissioned
 
-        def say(text: str) -> None:
-            print(f'  surveil: {text}', flush=True)
+def _experiment_command(args: argparse.Namespace) -> None:
+    experiment(
+        args.set_name,
+        args.system,
+        args.out,
+        args.seed,
+        args.mode,
+        args.trajectory,
+        args.expect,
+        run_options(args),
+        args.predictor,
+        args.rig,
+        args.calibration,
+        args.rig_seed,
+        args.hardware,
+        args.home,
+        not args.no_motion_correction,
+    )
 
-        hw = None
-        if args.hardware is not None:
-            from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
-            from activesurv_hardware.delays import with_measured_delays
 
-            hw = read(args.hardware)
-            rig = hardware_choice(hw, args.calibration)
-            hw = with_measured_delays(hw, calibration_dir(hw, args.calibration), say)
-        else:
-            rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
-        session = SurveilOptions(
-            rig=rig,
-            duration=args.duration,
-            arrival_interval=args.arrival_interval,
-            demand_interval=args.demand_interval,
-            demand_at=parse_demand_at(args.demand_at),
-            max_bag_duration=args.max_bag_duration,
-            max_bag_size=args.max_bag_size,
-            keep_bags=args.keep_bags,
-            system=args.system,
-            seed=args.seed,
-            objects_at_once=args.objects_at_once,
-        )
-        surveil(args.out, session, run_options(args), hw, args.home)
-    elif args.command == 'replay':
-        replay(args.bag, args.out, args.rtf, args.foxglove)
-    elif args.command == 'bag':
-        from activesurv_recording.salvage import reindex
+def _surveil_command(args: argparse.Namespace) -> None:
+    from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
+    from activesurv_bringup.rig.choice import choose
 
-        print(json.dumps(reindex(args.bag).as_dict(), indent=2))
-    elif args.command == 'report':
-        report(args.path, args.out)
-    elif args.command == 'demo':
-        demo(
-            args.out,
-            args.seed,
-            args.mode,
-            run_options(args),
-            args.rig,
-            args.calibration,
-            args.rig_seed,
-        )
-    elif args.command == 'commission':
-        commission(
-            args.out, args.rig, args.live, args.cameras, args.hardware, args.stations, args.home
-        )
-    elif args.command == 'lab':
-        from activesurv_bringup.rig.lab import run_lab
+    new_output_dir(args.out)  # refused before anything is commissioned
 
-        run_lab(
-            args.rig,
-            args.out,
-            _camera_list(args.cameras),
-            controllers=arguments.controllers(args.controller),
-            frame_rate=args.frame_rate,
-            namespace=args.namespace,
-            delays=arguments.timings(args.exposure_delay, '--exposure-delay', 0.0, 1.0),
-            offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
-            trigger=args.trigger,
-        )
-    elif args.command == 'stop':
-        from activesurv_bringup.rig.hardware import read
-        from activesurv_hardware.ros.estop import run_stop  # rclpy: only this command needs it
+    def say(text: str) -> None:
+        print(f'  surveil: {text}', flush=True)
 
-        run_stop(
-            read(args.hardware),
-            args.release,
-            args.timeout,
-            lambda text: print(f'activesurv stop: {text}', flush=True),
-        )
-    elif args.command == 'hardware' and args.hardware_command == 'measure-delay':
+    hw = None
+    if args.hardware is not None:
+        from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
+        from activesurv_hardware.delays import with_measured_delays
+
+        hw = read(args.hardware)
+        rig = hardware_choice(hw, args.calibration)
+        hw = with_measured_delays(hw, calibration_dir(hw, args.calibration), say)
+    else:
+        rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
+    session = SurveilOptions(
+        rig=rig,
+        duration=args.duration,
+        arrival_interval=args.arrival_interval,
+        demand_interval=args.demand_interval,
+        demand_at=parse_demand_at(args.demand_at),
+        max_bag_duration=args.max_bag_duration,
+        max_bag_size=args.max_bag_size,
+        keep_bags=args.keep_bags,
+        system=args.system,
+        seed=args.seed,
+        objects_at_once=args.objects_at_once,
+    )
+    surveil(args.out, session, run_options(args), hw, args.home)
+
+
+def _bag_command(args: argparse.Namespace) -> None:
+    from activesurv_recording.salvage import reindex
+
+    print(json.dumps(reindex(args.bag).as_dict(), indent=2))
+
+
+def _lab_command(args: argparse.Namespace) -> None:
+    from activesurv_bringup.rig.lab import run_lab
+
+    run_lab(
+        args.rig,
+        args.out,
+        _camera_list(args.cameras),
+        controllers=arguments.controllers(args.controller),
+        frame_rate=args.frame_rate,
+        namespace=args.namespace,
+        delays=arguments.timings(args.exposure_delay, '--exposure-delay', 0.0, 1.0),
+        offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
+        trigger=args.trigger,
+    )
+
+
+def _stop_command(args: argparse.Namespace) -> None:
+    from activesurv_bringup.rig.hardware import read
+    from activesurv_hardware.ros.estop import run_stop  # rclpy: only this command needs it
+
+    run_stop(
+        read(args.hardware),
+        args.release,
+        args.timeout,
+        lambda text: print(f'activesurv stop: {text}', flush=True),
+    )
+
+
+def _hardware_command(args: argparse.Namespace) -> None:
+    if args.hardware_command == 'measure-delay':
         print('\n'.join(measure_delay(args)))
-    elif args.command == 'hardware':
+    else:
         print('\n'.join(run_hardware_command(args)))
-    elif args.command == 'rig':
-        from activesurv_bringup.rig.rigs import run as write_rig
 
-        print(f'rig written: {write_rig(args)}')
 
+def _rig_command(args: argparse.Namespace) -> None:
+    from activesurv_bringup.rig.rigs import run as write_rig
+
+    print(f'rig written: {write_rig(args)}')
+
+
+# What each command runs (its arguments were checked before: arguments.check).
+COMMANDS: dict[str, Callable[[argparse.Namespace], None]] = {
+    'experiment': _experiment_command,
+    'surveil': _surveil_command,
+    'replay': lambda a: replay(a.bag, a.out, a.rtf, a.foxglove),
+    'bag': _bag_command,
+    'report': lambda a: report(a.path, a.out),
+    'demo': lambda a: demo(
+        a.out, a.seed, a.mode, run_options(a), a.rig, a.calibration, a.rig_seed
+    ),
+    'commission': lambda a: commission(
+        a.out, a.rig, a.live, a.cameras, a.hardware, a.stations, a.home
+    ),
+    'lab': _lab_command,
+    'stop': _stop_command,
+    'hardware': _hardware_command,
+    'rig': _rig_command,
+}
 
 if __name__ == '__main__':
     sys.exit(main())

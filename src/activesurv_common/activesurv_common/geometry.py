@@ -172,6 +172,21 @@ def angle_between(a: ArrayLike, b: ArrayLike) -> float:
     return float(np.arctan2(np.linalg.norm(np.cross(ua, ub)), np.dot(ua, ub)))
 
 
+def bearings(to_camera: ArrayLike, normal: ArrayLike) -> NDArray[np.float64]:
+    """The bearing theta of the sensor model (Appendix A): the angle (rad) between a marker's
+    normal and the line from the marker to the camera, for (N, 3) (or one (3,)) such lines."""
+    v = np.atleast_2d(np.asarray(to_camera, dtype=np.float64))
+    n = np.asarray(normal, dtype=np.float64).reshape(3)
+    n = n / np.linalg.norm(n)
+    d = np.maximum(np.linalg.norm(v, axis=1), 1e-12)
+    return np.asarray(np.arccos(np.clip((v @ n) / d, -1.0, 1.0)), dtype=np.float64)
+
+
+def bearing(to_camera: ArrayLike, normal: ArrayLike) -> float:
+    """:func:`bearings` of one line from the marker to the camera."""
+    return float(bearings(to_camera, normal)[0])
+
+
 @dataclass(frozen=True)
 class Transform:
     """A rigid transform ``T_a_b``: rotation ``R`` (3x3) and translation ``t`` (3,)."""

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.errors import SensorModelError
 from activesurv_common.geometry import Transform, as_vector3, unit
+from activesurv_common.geometry import bearing as geometry_bearing
 
 Array = NDArray[np.float64]
 VARIABLES = ('x', 'y', 'z', 'n_x', 'n_y', 'n_z')
@@ -207,8 +208,7 @@ def view_geometry(
     d = float(np.linalg.norm(to_cam))
     if d < 1e-9:
         return ViewGeometry(0.0, math.pi, False, np.array([np.nan, np.nan]))
-    cosb = float(np.clip(n @ to_cam / d, -1.0, 1.0))
-    bearing = math.acos(cosb)
+    bearing = geometry_bearing(to_cam, n)
     p_cam = T_world_camera.inverse().apply(c)
     if p_cam[2] <= radius:
         return ViewGeometry(d, bearing, False, np.array([np.nan, np.nan]))

@@ -81,3 +81,17 @@ def test_bad_inputs_raise() -> None:
     with pytest.raises(GeometryError):
         matrix_from_quaternion([0, 0, 0, 0])
     assert angle_between([1, 0, 0], [0, 1, 0]) == pytest.approx(np.pi / 2)
+
+
+def test_bearing_is_the_angle_between_the_normal_and_the_line_to_the_camera() -> None:
+    import math
+
+    from activesurv_common.geometry import bearing, bearings
+
+    n = [0.0, -1.0, 0.0]
+    assert bearing([0.0, -0.5, 0.0], n) == 0.0
+    assert abs(bearing([0.5, -0.5, 0.0], n) - math.pi / 4) < 1e-12
+    assert abs(bearing([0.0, 0.5, 0.0], n) - math.pi) < 1e-12
+    b = bearings([[0.0, -2.0, 0.0], [1.0, 0.0, 0.0]], [0.0, -3.0, 0.0])  # any length of normal
+    assert abs(b[0]) < 1e-12
+    assert abs(b[1] - math.pi / 2) < 1e-12

@@ -22,10 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.geometry import bearings
 from activesurv_common.occlusion import Obstacle, blocked, inflate
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.sensors import Sensor
-from activesurv_dispatch.visibility import visibility_from_variances
+from activesurv_dispatch.visibility import fused_visibility, visibility_from_variances
 from activesurv_stages.kinematics import reachable_distance
 
 Array = NDArray[np.float64]
@@ -82,8 +83,7 @@ def view_batch(
     rel = target.position[None, :] - centres
     d = np.linalg.norm(rel, axis=1)
     p = np.einsum('nji,nj->ni', R, rel)  # marker centre in each camera frame
-    cos_b = np.clip(-(rel @ target.normal) / np.maximum(d, 1e-12), -1.0, 1.0)
-    bearing = np.arccos(cos_b)
+    bearing = bearings(-rel, target.normal)
     cam = sensor.camera
     z = np.maximum(p[:, 2], 1e-9)
     u = cam.fx * p[:, 0] / z + cam.cx
@@ -203,3 +203,28 @@ def ideal_pose(
     big = 1e6
     full = Sensor(sensor.camera_id, sensor.mount, sensor.camera, sensor.limits, True)
     return best_achievable_pose(full, current, target, big, model, radius, 41, occluders)
+
+
+def visibility_at_poses(
+    sensors: dict[str, Sensor],
+    model: SensorModel,
+    poses: dict[str, ArrayLike],
+    target: Target,
+    marker_radius: float,
+    occluders: Sequence[Obstacle] | None = None,
+    only_in_view: bool = True,
+) -> float:
+    """v_f (eq. 2) of cameras at joint ``poses`` for ``target``: the planner's figure for a
+    plan and the evaluation's for what the cameras really saw. ``only_in_view``: a camera
+    that would not see the marker (out of view, too oblique, blocked) adds nothing; the
+    evaluation passes False for cameras that did image it."""
+    Rs = []
+    for c, q in poses.items():
+        s = sensors[c]
+        qq = np.asarray(q, dtype=np.float64)[None, :]
+        _, d, b, inside = view_batch(s, qq, target, marker_radius, model, occluders=occluders)
+        if only_in_view and not inside[0]:
+            continue
+        _, R = camera_frames(s, qq)
+        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
+    return fused_visibility(Rs)

@@ -57,10 +57,10 @@ from activesurv_dispatch.best_pose import (
     best_achievable_pose,
     camera_frames,
     view_batch,
+    visibility_at_poses,
 )
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_dispatch.sensors import Sensor, Setup
-from activesurv_dispatch.visibility import fused_visibility
 from activesurv_stages.kinematics import min_travel_time
 
 Array = NDArray[np.float64]
@@ -417,52 +417,7 @@ class DispatchPlanner:
                 frozen = _Frozen(tuple(c for c, _ in chosen), first, dict(chosen))
                 self._frozen[first.index] = frozen
             else:
-                alive = [c for c in frozen.cameras if c in joints and c not in self.excluded]
-                if self._replan_needed(frozen, first, alive):
-                    dt = first.time - now - self.settle_time
-                    for c in alive:
-                        frozen.desired[c] = self._better(
-                            c,
-                            frozen.desired.get(c),
-                            best_achievable_pose(
-                                self.sensors[c],
-                                joints[c],
-                                first.target,
-                                dt,
-                                self.model,
-                                self.setup.marker_radius,
-                                self.samples,
-                                self.occluders(first),
-                            ),
-                            first,
-                        )
-                    frozen.reference = first
-                    self.replans += 1
-                    replanned = True
-                    # Ours, beyond the paper: a camera whose view of the demand something now
-                    # blocks leaves its assignment (until the capture request), to be replaced.
-                    if first.index not in self._closed:
-                        gone = [
-                            c
-                            for c in alive
-                            if frozen.desired[c].visibility <= 0.0
-                            and self._blocked(c, frozen.desired[c].joints, first)
-                        ]
-                        frozen.cameras = tuple(c for c in frozen.cameras if c not in gone)
-                        for c in gone:
-                            frozen.desired.pop(c, None)
-                        alive = [c for c in alive if c not in gone]
-                        self.occlusion_swaps += len(gone)
-                self._manoeuvre = False
-                missing = self.k - len(alive)
-                spare = [c for c in cams if c not in frozen.cameras]
-                if missing > 0 and spare and first.index not in self._closed:
-                    ranked = self.rank(first, spare, joints, now, len(spare))
-                    extra = [item for item in ranked[:missing] if item[1].visibility > 0.0]
-                    if extra:
-                        frozen.cameras += tuple(c for c, _ in extra)
-                        frozen.desired.update(extra)
-                        alive += [c for c, _ in extra]
+                alive, replanned = self._keep_frozen(frozen, first, cams, joints, now)
                 ranking = tuple((c, frozen.desired[c].visibility) for c in alive)
             for c in frozen.cameras:
                 if c in frozen.desired and c in free:
@@ -489,6 +444,67 @@ class DispatchPlanner:
         for c in free:
             assignments[c] = Assignment(c, Role.IDLE, -1, joints[c], 0.0)
         return Plan(now, first_index, assignments, fused, replanned, ranking)
+
+    def _keep_frozen(
+        self,
+        frozen: _Frozen,
+        first: Demand,
+        cams: list[str],
+        joints: dict[str, Array],
+        now: float,
+    ) -> tuple[list[str], bool]:
+        """The first demand's frozen assignment, kept up to date: its cameras' poses replanned
+        when its prediction moved (eq. 1 again), cameras whose view became blocked swapped out,
+        empty slots refilled from spare cameras. Returns the cameras serving it and whether it
+        was replanned."""
+        replanned = False
+        alive = [c for c in frozen.cameras if c in joints and c not in self.excluded]
+        if self._replan_needed(frozen, first, alive):
+            replanned = True
+            dt = first.time - now - self.settle_time
+            for c in alive:
+                frozen.desired[c] = self._better(
+                    c,
+                    frozen.desired.get(c),
+                    best_achievable_pose(
+                        self.sensors[c],
+                        joints[c],
+                        first.target,
+                        dt,
+                        self.model,
+                        self.setup.marker_radius,
+                        self.samples,
+                        self.occluders(first),
+                    ),
+                    first,
+                )
+            frozen.reference = first
+            self.replans += 1
+            # Ours, beyond the paper: a camera whose view of the demand something now
+            # blocks leaves its assignment (until the capture request), to be replaced.
+            if first.index not in self._closed:
+                gone = [
+                    c
+                    for c in alive
+                    if frozen.desired[c].visibility <= 0.0
+                    and self._blocked(c, frozen.desired[c].joints, first)
+                ]
+                frozen.cameras = tuple(c for c in frozen.cameras if c not in gone)
+                for c in gone:
+                    frozen.desired.pop(c, None)
+                alive = [c for c in alive if c not in gone]
+                self.occlusion_swaps += len(gone)
+        self._manoeuvre = False
+        missing = self.k - len(alive)
+        spare = [c for c in cams if c not in frozen.cameras]
+        if missing > 0 and spare and first.index not in self._closed:
+            ranked = self.rank(first, spare, joints, now, len(spare))
+            extra = [item for item in ranked[:missing] if item[1].visibility > 0.0]
+            if extra:
+                frozen.cameras += tuple(c for c, _ in extra)
+                frozen.desired.update(extra)
+                alive += [c for c, _ in extra]
+        return alive, replanned
 
     def _standby(
         self,
@@ -557,18 +573,11 @@ class DispatchPlanner:
 
     def fused_visibility(self, demand: Demand, poses: dict[str, Array]) -> float:
         """v_f (eq. 2) of cameras at ``poses`` for ``demand``; out-of-view cameras add nothing."""
-        Rs = []
-        for c, q in poses.items():
-            s = self.sensors[c]
-            _, R = camera_frames(s, np.asarray(q)[None, :])
-            _, d, b, inside = view_batch(
-                s,
-                np.asarray(q)[None, :],
-                demand.target,
-                self.setup.marker_radius,
-                self.model,
-                occluders=self.occluders(demand),
-            )
-            if inside[0]:
-                Rs.append(self.model.world_covariance(float(d[0]), float(b[0]), R[0]))
-        return fused_visibility(Rs)
+        return visibility_at_poses(
+            self.sensors,
+            self.model,
+            dict(poses),
+            demand.target,
+            self.setup.marker_radius,
+            self.occluders(demand),
+        )

@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_common.geometry import Transform
+from activesurv_common.geometry import Transform, bearing
 from activesurv_common.sensor_model import SensorModel
-from activesurv_dispatch.best_pose import Target, camera_frames, view_batch
+from activesurv_dispatch.best_pose import Target, visibility_at_poses
 from activesurv_dispatch.sensors import Setup
 from activesurv_dispatch.visibility import fused_visibility
 from activesurv_evaluation.timing import empty_timing
@@ -56,9 +56,7 @@ def visibility_from_transforms(
     Rs = []
     for T in cameras:
         rel = T.t - c
-        d = float(np.linalg.norm(rel))
-        bearing = math.acos(max(-1.0, min(1.0, float(n @ rel) / d)))
-        Rs.append(model.world_covariance(d, bearing, T.R))
+        Rs.append(model.world_covariance(float(np.linalg.norm(rel)), bearing(rel, n), T.R))
     return fused_visibility(Rs)
 
 
@@ -71,14 +69,10 @@ def observed_visibility(
 ) -> float:
     """v_f (eq. 2) of the cameras at ``poses`` (those that imaged the marker), true target."""
     target = Target(np.asarray(position, float), np.asarray(normal, float))
-    Rs = []
-    for cid, q in poses.items():
-        s = setup.sensor(cid)
-        qq = np.asarray(q, float)[None, :]
-        _, d, b, _ = view_batch(s, qq, target, setup.marker_radius, model)
-        _, R = camera_frames(s, qq)
-        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
-    return fused_visibility(Rs)
+    sensors = {s.camera_id: s for s in setup.sensors}
+    return visibility_at_poses(
+        sensors, model, dict(poses), target, setup.marker_radius, only_in_view=False
+    )
 
 
 @dataclass

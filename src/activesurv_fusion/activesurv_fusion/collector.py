@@ -14,6 +14,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 
+import numpy as np
+from numpy.typing import ArrayLike
+
 from activesurv_common.information import covariance_visibility
 from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
 from activesurv_fusion.pose_fusion import FusedPose, PoseReading, fuse_poses
@@ -32,6 +35,26 @@ class Answer:
     outcome: Outcome
     reading: PoseReading | None
     reason: str = ''
+
+
+def camera_answer(
+    camera_id: str,
+    ok: bool,
+    position: ArrayLike | None,
+    normal: ArrayLike | None,
+    covariance: ArrayLike | None,
+    reason: str,
+) -> Answer:
+    """A camera's answer to a demand from its observation (the node's message and lockstep's
+    observation alike): a failed one keeps the imager's reason; an OK one that is not a valid
+    reading becomes a failed answer that says why."""
+    if not ok or position is None or normal is None or covariance is None:
+        return Answer(camera_id, Outcome.FAILED, None, reason)
+    try:
+        reading = PoseReading.create(camera_id, position, normal, np.asarray(covariance))
+    except InvalidReadingError as exc:
+        return Answer(camera_id, Outcome.FAILED, None, f'invalid observation: {exc}')
+    return Answer(camera_id, Outcome.OK, reading)
 
 
 @dataclass

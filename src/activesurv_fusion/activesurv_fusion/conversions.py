@@ -5,9 +5,7 @@ from __future__ import annotations
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from activesurv_fusion.collector import Answer, DemandResult, DemandStatus, Outcome
-from activesurv_fusion.errors import InvalidReadingError
-from activesurv_fusion.pose_fusion import PoseReading
+from activesurv_fusion.collector import Answer, DemandResult, DemandStatus, camera_answer
 
 __all__ = [
     'observation_to_answer',
@@ -36,17 +34,16 @@ def request_fields(
 
 
 def observation_to_answer(msg: MarkerObservation) -> Answer:
-    """A camera's answer; a bad OK observation becomes a failed answer with the reason."""
-    if msg.status != MarkerObservation.STATUS_OK:
-        return Answer(msg.camera_id, Outcome.FAILED, None, msg.reason or f'status {msg.status}')
+    """A camera's answer (:func:`~activesurv_fusion.collector.camera_answer`)."""
     p, n = msg.position, msg.normal
-    try:
-        reading = PoseReading.create(
-            msg.camera_id, (p.x, p.y, p.z), (n.x, n.y, n.z), np.array(msg.covariance)
-        )
-    except InvalidReadingError as exc:
-        return Answer(msg.camera_id, Outcome.FAILED, None, f'invalid observation: {exc}')
-    return Answer(msg.camera_id, Outcome.OK, reading)
+    return camera_answer(
+        msg.camera_id,
+        msg.status == MarkerObservation.STATUS_OK,
+        (p.x, p.y, p.z),
+        (n.x, n.y, n.z),
+        msg.covariance,
+        msg.reason or f'status {msg.status}',
+    )
 
 
 def result_to_estimate(result: DemandResult, frame_id: str) -> TargetEstimate:

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.camera_model import CameraModel
-from activesurv_common.geometry import Transform, unit
+from activesurv_common.geometry import Transform, bearing, unit
 from activesurv_common.sensor_model import SensorModel
 from activesurv_imaging.ellipse import Ellipse
 from activesurv_imaging.errors import VisionErrors
@@ -124,7 +124,7 @@ def observe_marker(
     pose = m.poses[1 - m.chosen] if (wrong_solution and m.poses is not None) else m.pose
     c, n = pose.center, pose.normal
     d = float(np.linalg.norm(c))
-    bearing = math.acos(float(np.clip(n @ (-c / d), -1.0, 1.0)))
+    theta = bearing(-c, n)  # the camera is at the origin of its frame
     return Observation(
         camera_id,
         demand_index,
@@ -133,12 +133,12 @@ def observe_marker(
         '',
         position=T_world_camera.apply(c),
         normal=T_world_camera.rotate(n),
-        covariance=model.world_covariance(d, bearing, T_world_camera.R),
+        covariance=model.world_covariance(d, theta, T_world_camera.R),
         ellipse=m.ellipse,
         chosen=m.chosen,
         margin=m.margin,
         distance=d,
-        bearing=bearing,
+        bearing=theta,
         camera_pose=T_world_camera,
     )
 

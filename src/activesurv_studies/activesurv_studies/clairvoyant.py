@@ -32,7 +32,7 @@ from activesurv_common.occlusion import (
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_dispatch.best_pose import Target, best_achievable_pose, view_batch
-from activesurv_dispatch.sensors import setup_from_dict
+from activesurv_dispatch.sensors import Setup, setup_from_dict
 from activesurv_evaluation.results import observed_visibility
 from activesurv_recording.bagio import read_bag
 from activesurv_recording.errors import BagError
@@ -57,21 +57,7 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
     setup = setup_from_dict(setup_data, record.system)
     model = SensorModel.load()
     obstacles = list(obstacles_from_list(list(record.obstacles)))
-    joints = {s.camera_id: TimeSeries(len(s.joint_names), capacity=10**7) for s in setup.sensors}
-    names = {f'/{s.camera_id}/stage/joint_states': s for s in setup.sensors}
-    lanes: dict[int, TimeSeries] = {}
-    for m in read_bag(bag, {*names, '/object_state'}):
-        t = float(m.msg.header.stamp.sec) + 1e-9 * float(m.msg.header.stamp.nanosec)
-        if m.topic == '/object_state':
-            slot = int(getattr(m.msg, 'slot', 0))
-            series = lanes.setdefault(slot, TimeSeries(7, capacity=10**7))
-            p, n = m.msg.side_marker, m.msg.side_normal
-            series.add(t, [p.x, p.y, p.z, n.x, n.y, n.z, 1.0 if m.msg.in_workspace else 0.0])
-            continue
-        s = names[m.topic]
-        by_name = dict(zip(m.msg.name, m.msg.position, strict=False))
-        if all(j in by_name for j in s.joint_names):
-            joints[s.camera_id].add(t, [by_name[j] for j in s.joint_names])
+    joints, lanes = _recorded_states(bag, setup)
     origin = record.time_origin
     settle = 0.1
     rows = []
@@ -140,6 +126,33 @@ def compare(run_dir: Path, k: int = K) -> dict[str, Any]:
                 ),
             }
         )
+    return _summary(rows)
+
+
+def _recorded_states(
+    bag: Path, setup: Setup
+) -> tuple[dict[str, TimeSeries], dict[int, TimeSeries]]:
+    """Each camera's stage states, and each lane's object (marker, normal, on the table)."""
+    joints = {s.camera_id: TimeSeries(len(s.joint_names), capacity=10**7) for s in setup.sensors}
+    names = {f'/{s.camera_id}/stage/joint_states': s for s in setup.sensors}
+    lanes: dict[int, TimeSeries] = {}
+    for m in read_bag(bag, {*names, '/object_state'}):
+        t = float(m.msg.header.stamp.sec) + 1e-9 * float(m.msg.header.stamp.nanosec)
+        if m.topic == '/object_state':
+            slot = int(getattr(m.msg, 'slot', 0))
+            series = lanes.setdefault(slot, TimeSeries(7, capacity=10**7))
+            p, n = m.msg.side_marker, m.msg.side_normal
+            series.add(t, [p.x, p.y, p.z, n.x, n.y, n.z, 1.0 if m.msg.in_workspace else 0.0])
+            continue
+        s = names[m.topic]
+        by_name = dict(zip(m.msg.name, m.msg.position, strict=False))
+        if all(j in by_name for j in s.joint_names):
+            joints[s.camera_id].add(t, [by_name[j] for j in s.joint_names])
+    return joints, lanes
+
+
+def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per-demand means of the run, the clairvoyant and the greedy assignments."""
     if not rows:
         return {'demands': 0}
 

@@ -27,7 +27,7 @@ from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
-from activesurv_dispatch.sensors import setup_to_dict
+from activesurv_dispatch.sensors import Sensor, setup_to_dict
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.runner import NodeRunner
 from activesurv_launch.session import GraphSession
@@ -82,9 +82,6 @@ def graph_specs(
     truth = {'rig_file': files['rig_file']} if files else {}
     believed = {'setup_file': files['setup_file']} if files else {}
 
-    def info(camera_id: str) -> dict[str, str]:
-        return {'camera_info_file': f'{files["calibration"]}/{camera_id}.yaml'} if files else {}
-
     by_cam = {f.camera: f for f in faults}
     specs = [
         NodeSpec(
@@ -112,7 +109,7 @@ def graph_specs(
                 'camera_type': 'overhead',
                 'mount.static_pose': over,
                 **truth,
-                **info('overhead'),
+                **_intrinsics(files, 'overhead'),
                 'frame_rate': exp.overhead_rate,
                 'seed': exp.seed * 100 + 99,
             },
@@ -120,39 +117,8 @@ def graph_specs(
         locator_spec(exp, sim, over, exp.setup.marker_radius),
         *core_specs(exp, sim, believed, over, exp.demand_times, bag.parent / 'logs'),
     ]
-    for i, s in enumerate(exp.setup.sensors):
-        cid = s.camera_id
-        fault = by_cam.get(cid)
-        if fault is not None and fault.kind is FaultKind.DEAD:
-            continue  # the camera's nodes are not running
-        specs.append(
-            stage_spec(s, exp.setup.initial[cid], exp.system, 10.0, sim_time=True)
-        )  # 10 Hz: states at the demand instants come extra
-        cam_params: dict[str, Any] = {
-            **sim,
-            'camera_id': cid,
-            'frame_rate': 0.0,
-            'preview_rate': float(preview_rate),
-            'seed': exp.seed * 100 + i,
-            **mount_parameters(s),
-            **truth,
-            **info(cid),
-        }
-        imager_params: dict[str, Any] = {
-            **sim,
-            **exp.imager_config(cid, fault).to_parameters(),
-            **mount_parameters(s),
-            'reliable_images': True,
-            **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
-        }
-        if fault is not None and fault.kind is FaultKind.FROZEN:
-            cam_params['inject_frozen'] = True
-        specs.append(
-            NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params)
-        )
-        specs.append(
-            NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params)
-        )
+    for i, sensor in enumerate(exp.setup.sensors):
+        specs += camera_specs(exp, i, sensor, by_cam.get(sensor.camera_id), files, preview_rate)
     if split_hosts:
         specs = [
             replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
@@ -172,6 +138,53 @@ def graph_specs(
     host = 'core' if split_hosts else ''
     specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
     return specs
+
+
+def _intrinsics(files: dict[str, str], camera_id: str) -> dict[str, str]:
+    """A simulated camera's published intrinsics: its commissioned calibration, if any."""
+    return {'camera_info_file': f'{files["calibration"]}/{camera_id}.yaml'} if files else {}
+
+
+def camera_specs(
+    exp: Experiment,
+    i: int,
+    s: Sensor,
+    fault: Fault | None,
+    files: dict[str, str],
+    preview_rate: float,
+) -> list[NodeSpec]:
+    """One dynamic camera's simulated stage, simulated camera and imager (none if ``fault``
+    says it is dead)."""
+    sim = {'use_sim_time': True}
+    truth = {'rig_file': files['rig_file']} if files else {}
+    cid = s.camera_id
+    if fault is not None and fault.kind is FaultKind.DEAD:
+        return []  # the camera's nodes are not running
+    stage = stage_spec(s, exp.setup.initial[cid], exp.system, 10.0, sim_time=True)
+    cam_params: dict[str, Any] = {
+        **sim,
+        'camera_id': cid,
+        'frame_rate': 0.0,
+        'preview_rate': float(preview_rate),
+        'seed': exp.seed * 100 + i,
+        **mount_parameters(s),
+        **truth,
+        **_intrinsics(files, cid),
+    }
+    imager_params: dict[str, Any] = {
+        **sim,
+        **exp.imager_config(cid, fault).to_parameters(),
+        **mount_parameters(s),
+        'reliable_images': True,
+        **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
+    }
+    if fault is not None and fault.kind is FaultKind.FROZEN:
+        cam_params['inject_frozen'] = True
+    return [
+        stage,  # 10 Hz: states at the demand instants come extra
+        NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params),
+        NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params),
+    ]
 
 
 def locator_spec(

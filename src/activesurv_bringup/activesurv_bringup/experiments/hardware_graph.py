@@ -98,6 +98,38 @@ def on_rig(exp: Experiment, hw: Hardware, origin: float, motion_correction: bool
     )
 
 
+def _recorder(
+    hw: Hardware, bag: Path, image_rate: float, record: RunRecord, record_frames: str
+) -> NodeSpec:
+    """The recorder of a hardware run: the namespace's topics under their plain names."""
+    return NodeSpec(
+        'recorder',
+        'activesurv_recording.recorder_node',
+        parameters={
+            'use_sim_time': False,
+            'output': str(bag),
+            'image_rate': float(image_rate),
+            'run_info': record.to_json(),
+            'strip_namespace': hw.namespace,
+            # Free-running cameras stream 30 frames a second each: the bag keeps the overhead
+            # stream thinned and no dynamic camera's frames (the observations, annotations and
+            # stage states say what each imaged; 2.3 MB/s otherwise).
+            'thin_topics': [
+                '/overhead/image_raw',
+                '/overhead/camera_info',
+                hw.overhead.source.value,
+            ],
+            'exclude': ['/rosout', '/parameter_events']
+            + (
+                []
+                if record_frames == 'all'
+                else [f'/{cid}/image_raw' for cid in hw.cameras]
+                + [c.source.value for c in hw.cameras.values()]
+            ),
+        },
+    )
+
+
 def hardware_specs(
     exp: Experiment,
     hw: Hardware,
@@ -121,34 +153,7 @@ def hardware_specs(
     over = pose_to_list(exp.overhead(truth=False)[1])
     on = on_rig(exp, hw, origin, motion_correction)
     record = (record or exp.record()).with_hardware(on)
-    specs = [
-        NodeSpec(
-            'recorder',
-            'activesurv_recording.recorder_node',
-            parameters={
-                **wall,
-                'output': str(bag),
-                'image_rate': float(image_rate),
-                'run_info': record.to_json(),
-                'strip_namespace': hw.namespace,
-                # Free-running cameras stream 30 frames a second each: the bag keeps the
-                # overhead stream thinned and no dynamic camera's frames (the observations,
-                # annotations and stage states say what each imaged; 2.3 MB/s otherwise).
-                'thin_topics': [
-                    '/overhead/image_raw',
-                    '/overhead/camera_info',
-                    hw.overhead.source.value,
-                ],
-                'exclude': ['/rosout', '/parameter_events']
-                + (
-                    []
-                    if record_frames == 'all'
-                    else [f'/{cid}/image_raw' for cid in hw.cameras]
-                    + [c.source.value for c in hw.cameras.values()]
-                ),
-            },
-        )
-    ]
+    specs = [_recorder(hw, bag, image_rate, record, record_frames)]
     sources, remap = source_specs(hw.overhead, files['calibration'])
     specs += sources
     locator = locator_spec(exp, wall, over, hw.geometry.top_marker_radius, remap)

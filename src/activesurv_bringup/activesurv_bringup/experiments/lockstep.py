@@ -20,6 +20,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,10 +35,8 @@ from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher
 from activesurv_evaluation.results import DemandRecord, PredictionLog, observed_visibility
 from activesurv_evaluation.tracking import Snapshot
-from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
+from activesurv_fusion.collector import Answer, DemandBatch, camera_answer, resolve
 from activesurv_fusion.config import FusionConfig
-from activesurv_fusion.errors import InvalidReadingError
-from activesurv_fusion.pose_fusion import PoseReading
 from activesurv_imaging.capture import CaptureCore
 from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
@@ -102,25 +101,7 @@ def run_lockstep(
     # Dispatch, stages and imagers: the same session cores as the nodes (lockstep hears every
     # camera every step: liveness never expires).
     dispatcher = Dispatcher(exp.setup, exp.model, exp.dispatcher_config(math.inf))
-    cameras = {
-        s.camera_id: _Camera(
-            [
-                AxisSimulator(lim, float(q), 0.0)
-                for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
-            ],
-            Renderer(exp.true_camera(s.camera_id)[0]),
-            exp.true_camera(s.camera_id)[1],
-            CaptureCore(
-                exp.imager_config(s.camera_id, by_cam.get(s.camera_id)),
-                s.mount,
-                exp.model,
-                _identity,
-                s.camera,
-            ),
-        )
-        for s in exp.setup.sensors
-        if s.camera_id not in dead
-    }
+    cameras = _cameras(exp, by_cam, dead)
     fusion = exp.fusion_config()
     truth_obstacles = exp.rig.rig.obstacles if exp.rig is not None else ()
     fixtures = obstacle_plates(truth_obstacles)  # what the cameras really see
@@ -143,17 +124,7 @@ def run_lockstep(
             session.on_fix(t, fix.xy)
         session.tick(t)
         if track_log is not None:
-            seen = tracker.estimates(t, tracker.tracks_started)
-            present = tracker.workspace.contains(state[:2])  # on the table, not parked
-            track_log.append(
-                (
-                    Snapshot(
-                        t,
-                        tuple((e.object_id, float(e.xy[0]), float(e.xy[1])) for e in seen),
-                    ),
-                    Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
-                )
-            )
+            track_log.append(_snapshots(tracker, t, state))
         now_horizon = session.horizon(t)
         horizon: list[Demand] = []
         for p in now_horizon.demands:
@@ -182,9 +153,48 @@ def run_lockstep(
             if progress:
                 progress(len(records), len(exp.demand_times), done.demand.time)
 
-    truth = exp.demands_on(expected=False)
+    return _every_demand(exp, records, predicted)
+
+
+def _cameras(exp: Experiment, by_cam: dict[str, Fault], dead: set[str]) -> dict[str, _Camera]:
+    """The simulated stages, renderer and capture core of every camera that is alive."""
+    return {
+        s.camera_id: _Camera(
+            [
+                AxisSimulator(lim, float(q), 0.0)
+                for lim, q in zip(s.limits, exp.setup.initial[s.camera_id], strict=True)
+            ],
+            Renderer(exp.true_camera(s.camera_id)[0]),
+            exp.true_camera(s.camera_id)[1],
+            CaptureCore(
+                exp.imager_config(s.camera_id, by_cam.get(s.camera_id)),
+                s.mount,
+                exp.model,
+                _identity,
+                s.camera,
+            ),
+        )
+        for s in exp.setup.sensors
+        if s.camera_id not in dead
+    }
+
+
+def _snapshots(tracker: Any, t: float, state: Array) -> tuple[Snapshot, Snapshot]:
+    """The overhead tracks and the truth at ``t`` (for the tracking metrics)."""
+    seen = tracker.estimates(t, tracker.tracks_started)
+    present = tracker.workspace.contains(state[:2])  # on the table, not parked
+    return (
+        Snapshot(t, tuple((e.object_id, float(e.xy[0]), float(e.xy[1])) for e in seen)),
+        Snapshot(t, ((1, float(state[0]), float(state[1])),) if present else ()),
+    )
+
+
+def _every_demand(
+    exp: Experiment, records: dict[int, DemandRecord], predicted: PredictionLog
+) -> list[DemandRecord]:
+    """A record for every demand of the experiment (those never captured say so)."""
     out_records = []
-    for d in truth:
+    for d in exp.demands_on(expected=False):
         r = records.get(d.index)
         if r is None:
             r = DemandRecord(
@@ -254,20 +264,17 @@ def _capture(
         cam.imager.add_joints(tj, q)
         obs = cam.imager.poll(tj)[0]
         offsets[cid] = obs.frame_offset
-        if (
-            obs.status is not ObservationStatus.OK
-            or obs.position is None
-            or obs.normal is None
-            or obs.covariance is None
-        ):
-            answers[cid] = Answer(cid, Outcome.FAILED, None, f'{obs.status.name}: {obs.reason}')
-            continue
-        poses[cid] = q  # it imaged the marker: it counts for the observed visibility
-        try:
-            reading = PoseReading.create(cid, obs.position, obs.normal, obs.covariance)
-            answers[cid] = Answer(cid, Outcome.OK, reading)
-        except InvalidReadingError as exc:
-            answers[cid] = Answer(cid, Outcome.FAILED, None, str(exc))
+        ok = obs.status is ObservationStatus.OK
+        answers[cid] = camera_answer(
+            cid,
+            ok,
+            obs.position,
+            obs.normal,
+            obs.covariance,
+            obs.reason or f'status {obs.status.value}',
+        )
+        if ok and obs.position is not None:
+            poses[cid] = q  # it imaged the marker: it counts for the observed visibility
     batch = DemandBatch(capture.demand.index, tj, tuple(capture.cameras), answers)
     result = resolve(batch, z=fusion.z_sigma, max_faulty=fusion.faulty_limit)
     rec = DemandRecord(capture.demand.index, tj, truth.side.copy(), truth.side_normal.copy())

@@ -1011,7 +1011,7 @@ def _rig_command(args: argparse.Namespace) -> None:
 
 
 # What each command runs (its arguments were checked before: arguments.check).
-COMMANDS: dict[str, Callable[[argparse.Namespace], None]] = {
+COMMANDS: dict[str, Callable[[argparse.Namespace], object]] = {
     'experiment': _experiment_command,
     'surveil': _surveil_command,
     'replay': lambda a: replay(a.bag, a.out, a.rtf, a.foxglove),

@@ -222,7 +222,9 @@ def visibility_at_poses(
     for c, q in poses.items():
         s = sensors[c]
         qq = np.asarray(q, dtype=np.float64)[None, :]
-        _, d, b, inside = view_batch(s, qq, target, marker_radius, model, occluders=occluders)
+        _, d, b, inside = view_batch(
+            s, qq, target, marker_radius, model, occluders=occluders or ()
+        )
         if only_in_view and not inside[0]:
             continue
         _, R = camera_frames(s, qq)

@@ -12,7 +12,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import pytest
 from rclpy.parameter import Parameter
+
+pytestmark = pytest.mark.node  # in-process rclpy nodes
 
 NAN, INF = float('nan'), float('inf')
 

@@ -19,6 +19,8 @@ from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import sec_to_time
 from activesurv_dispatch.sensors import load_setup
 
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
 OVERHEAD = [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0]
 
 

@@ -20,6 +20,8 @@ from rclpy.serialization import deserialize_message
 
 from activesurv_liveview.live import LiveFilter
 
+pytestmark = pytest.mark.graph  # starts node processes
+
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
 

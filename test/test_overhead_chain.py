@@ -7,12 +7,15 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import pytest
 from rclpy.parameter import Parameter
 
 from activesurv_common.ros import qos, topics
 from activesurv_imaging.overhead_locator_node import OverheadLocatorNode
 from activesurv_prediction.predictor_node import PredictorNode
 from activesurv_sim.sim_camera_node import SimCameraNode
+
+pytestmark = pytest.mark.node  # in-process rclpy nodes
 
 OVERHEAD_POSE = [0.25, 0.1, 1.25, 1.0, 0.0, 0.0, 0.0]  # looking straight down
 TOP_HEIGHT = 0.08

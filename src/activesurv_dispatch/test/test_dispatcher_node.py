@@ -6,11 +6,14 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import pytest
 from rclpy.parameter import Parameter
 
 from activesurv_common.ros import qos, topics
 from activesurv_dispatch.dispatcher_node import DispatcherNode
 from activesurv_dispatch.sensors import load_setup
+
+pytestmark = pytest.mark.node  # in-process rclpy nodes
 
 
 def test_horizon_to_goals_plan_and_capture(

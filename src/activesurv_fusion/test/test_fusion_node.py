@@ -12,6 +12,8 @@ from rclpy.parameter import Parameter
 from activesurv_common.ros import qos, topics
 from activesurv_fusion.fusion_node import FusionNode
 
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
 
 @pytest.fixture
 def fusion_node(rclpy_context: Any) -> Iterator[FusionNode]:

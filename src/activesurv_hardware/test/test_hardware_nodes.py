@@ -20,6 +20,8 @@ from activesurv_hardware.path_runner import PathRunner, TruthFromController
 from activesurv_hardware.video_source import VideoSource, is_file, parse_device
 from activesurv_sim.xytable import ObjectModel, named_path
 
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
 
 @pytest.fixture
 def video(tmp_path: Path) -> Path:

@@ -14,6 +14,8 @@ from activesurv_common.ros import qos, topics
 from activesurv_imaging.imager_node import ImagerNode
 from activesurv_sim.sim_camera_node import SimCameraNode
 
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
 MARKER = np.array([0.2, 0.0, 0.05])
 BEARING = math.radians(30.0)
 BASE = MARKER + 0.55 * np.array([math.sin(BEARING), -math.cos(BEARING), 0.0])

@@ -15,6 +15,8 @@ from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import sec_to_time
 from activesurv_prediction.predictor_node import PredictorNode
 
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
 
 def test_fixes_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., bool]) -> None:
     from activesurv_interfaces.msg import DemandHorizon

@@ -222,7 +222,7 @@ class Experiment:
             'initial_poses': {
                 c: tuple(float(v) for v in q) for c, q in self.setup.initial.items()
             },
-            'rig': self.rig.describe() if self.rig is not None else RigFacts(),
+            'rig': RigFacts.model_validate(self.rig.describe() if self.rig is not None else {}),
             # What the system was told: a replay's imagers are told the same.
             'setup': setup_to_dict(self.setup) if self.rig is not None else None,
             'obstacles': tuple(obstacles_to_list(self.setup.obstacles)),

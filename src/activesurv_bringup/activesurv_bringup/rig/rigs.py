@@ -31,7 +31,6 @@ from activesurv_common.calibration import Calibration, load_calibration
 from activesurv_common.errors import CalibrationError
 from activesurv_common.mount import CameraMount
 from activesurv_dispatch.sensors import load_setup
-from activesurv_recording.run_record import RigFacts
 from activesurv_sim.rig import (
     Rig,
     RigError,
@@ -80,14 +79,14 @@ class RigChoice:
     calibration_source: str
     layout: Path | None = None  # the set-up YAML of the rig as designed (None: the paper's)
 
-    def describe(self) -> RigFacts:
-        """What a run record says of this rig."""
-        return RigFacts(
-            rig=self.rig.name,
-            rig_source=self.rig_source,
-            rig_seed=self.rig.seed,
-            calibration=self.calibration_source,
-        )
+    def describe(self) -> dict[str, str | int | None]:
+        """What a run record says of this rig (``RunRecord.rig``)."""
+        return {
+            'rig': self.rig.name,
+            'rig_source': self.rig_source,
+            'rig_seed': self.rig.seed,
+            'calibration': self.calibration_source,
+        }
 
 
 def resolve_rig(path: str | Path | None, seed: int) -> tuple[Rig, str]:

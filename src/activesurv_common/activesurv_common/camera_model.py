@@ -40,6 +40,9 @@ class CameraModel:
         K: 3x3 camera matrix.
         dist: distortion coefficients (k1, k2, p1, p2, k3).
         name: camera id, e.g. ``cam1`` or ``overhead``.
+        gamma: the camera's response, ``grey = 255 (radiance / full scale)^(1 / gamma)``
+            (1: linear; 2.2: an sRGB-like curve); the imager linearises frames with it.
+        exposure_time: s the shutter is open (0: unknown); a moving marker is blurred over it.
     """
 
     width: int
@@ -47,6 +50,8 @@ class CameraModel:
     K: Array
     dist: Array = field(default_factory=lambda: np.zeros(5))
     name: str = 'camera'
+    gamma: float = 1.0
+    exposure_time: float = 0.0
 
     def __post_init__(self) -> None:
         K = np.asarray(self.K, dtype=np.float64)
@@ -59,6 +64,14 @@ class CameraModel:
             raise CalibrationError(f'{self.name}: camera matrix needs fx, fy > 0 and [0 0 1]')
         if dist.size not in (0, 4, 5, 8) or not np.all(np.isfinite(dist)):
             raise CalibrationError(f'{self.name}: distortion must have 4, 5 or 8 finite values')
+        if not (math.isfinite(self.gamma) and 0.2 <= self.gamma <= 5.0):
+            raise CalibrationError(
+                f'{self.name}: response gamma must be in [0.2, 5], got {self.gamma}'
+            )
+        if not (math.isfinite(self.exposure_time) and 0.0 <= self.exposure_time <= 1.0):
+            raise CalibrationError(
+                f'{self.name}: exposure_time must be in [0, 1] s, got {self.exposure_time}'
+            )
         object.__setattr__(self, 'K', K)
         object.__setattr__(self, 'dist', np.pad(dist, (0, max(0, 5 - dist.size))))
 
@@ -153,6 +166,10 @@ class CameraModel:
                 'cols': 4,
                 'data': np.hstack([self.K, np.zeros((3, 1))]).reshape(-1).tolist(),
             },
+            # Ours, beside the camera_calibration keys (their readers ignore them); only when
+            # not the defaults, so that a linear camera's file is camera_calibration's own.
+            **({'response': {'gamma': float(self.gamma)}} if self.gamma != 1.0 else {}),
+            **({'exposure_time': float(self.exposure_time)} if self.exposure_time else {}),
         }
 
     @staticmethod
@@ -173,6 +190,8 @@ class CameraModel:
                 K,
                 dist,
                 str(data.get('camera_name', 'camera')),
+                float((data.get('response') or {}).get('gamma', 1.0)),
+                float(data.get('exposure_time', 0.0)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f'malformed camera calibration: {exc!r}') from exc

@@ -52,7 +52,13 @@ class DetectorConfig:
         border_margin: a blob this close to the border is partly out of view.
         max_fill_error: |blob area / ellipse area - 1| above this is not an ellipse.
         max_coarse_residual: RMS distance of the blob contour to its coarse ellipse.
-        profile_half_length: edge search range along the normal.
+        profile_half_length: the shortest edge search range along the normal (either side).
+        max_profile_half_length: the longest: the range grows with the marker (0.45 of its
+            image semi-minor axis), so that a blurred edge's ramp (defocus, motion, a few to
+            15 px wide) lies inside it with both grey levels beyond its ends.
+        gamma: the camera's response, ``grey = 255 (radiance / full scale)^(1 / gamma)``; the
+            profiles are linearised first (a blurred edge's half-way crossing in radiance is
+            the edge, in grey levels it is not). 1: a linear camera.
         subpixel: refine edges to sub-pixel (off: the boundary pixels are used as they are).
         near_gate: px from the expected position within which one of several markers is taken.
     """
@@ -65,6 +71,8 @@ class DetectorConfig:
     max_fill_error: float = 0.08
     max_coarse_residual: float = 1.5
     profile_half_length: float = 4.0
+    max_profile_half_length: float = 16.0
+    gamma: float = 1.0
     subpixel: bool = True
     near_gate: float = 60.0
 
@@ -131,31 +139,99 @@ def _outward_normals(ell: Ellipse, pts: Array) -> Array:
 def subpixel_edges(
     image: NDArray[np.uint8], boundary: Array, coarse: Ellipse, config: DetectorConfig
 ) -> Array:
-    """Move boundary pixels to the half-way crossing of the grey-level profile across the edge."""
+    """Move boundary pixels to the half-way crossing of the grey-level profile across the edge.
+
+    The profile runs along the coarse ellipse's normal over a range that grows with the marker
+    (:class:`DetectorConfig`), in linear radiance (the camera's ``gamma`` undone); the marker
+    and plate levels are the medians of its inner and outer quarters, beyond a blurred edge's
+    ramp, so that the crossing is the edge whatever the blur.
+    """
     normals = _outward_normals(coarse, boundary)
-    steps = np.arange(-config.profile_half_length, config.profile_half_length + 1e-9, 0.25)
+    half = float(
+        np.clip(
+            0.45 * coarse.semi_axes[1],
+            config.profile_half_length,
+            max(config.max_profile_half_length, config.profile_half_length),
+        )
+    )
+    step = 0.25 if half <= 6.0 else 0.5
+    steps = np.arange(-half, half + 1e-9, step)
     xs = (boundary[:, 0:1] + normals[:, 0:1] * steps[None, :]).astype(np.float32)
     ys = (boundary[:, 1:2] + normals[:, 1:2] * steps[None, :]).astype(np.float32)
     prof = cv2.remap(
-        image.astype(np.float32), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        _linear(image, config.gamma), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     ).astype(np.float64)
     quarter = max(len(steps) // 4, 1)
-    bright = prof[:, :quarter].mean(axis=1)  # inside the marker
-    dark = prof[:, -quarter:].mean(axis=1)  # on the plate
+    bright = np.median(prof[:, :quarter], axis=1)  # inside the marker
+    dark = np.median(prof[:, -quarter:], axis=1)  # on the plate
     contrast = bright - dark
     mid = 0.5 * (bright + dark)
     below = prof < mid[:, None]
-    # First sample (from inside out) below the mid level, after the last one above it that is
-    # still inside: search from the centre of the profile outwards for robustness.
+    # First sample (from inside out) below the mid level: search from the inside outwards.
     first = np.argmax(below, axis=1)
-    ok = (contrast >= config.min_contrast) & below.any(axis=1) & (first > 0)
+    ok = (contrast >= _linear_contrast(config)) & below.any(axis=1) & (first > 0)
     idx = np.nonzero(ok)[0]
     f = first[idx]
     v0 = prof[idx, f - 1]
     v1 = prof[idx, f]
     frac = (v0 - mid[idx]) / np.maximum(v0 - v1, 1e-9)
-    t = steps[f - 1] + 0.25 * np.clip(frac, 0.0, 1.0)
+    t = steps[f - 1] + step * np.clip(frac, 0.0, 1.0)
+    # A disc blurred by an isotropic blur of variance s2 (defocus, the pixel) has its half-way
+    # contour inside the disc by curvature x s2 / 2. Motion blur adds variance along its
+    # direction only, and moves no half-way point along it: the isotropic part is the least
+    # variance found around the marker.
+    var = _blur_variance(prof[idx], steps, step)
+    if len(var):
+        t += 0.5 * _curvature(coarse, boundary[idx]) * float(np.percentile(var, 10))
     return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64)
+
+
+def _blur_variance(prof: Array, steps: Array, step: float) -> Array:
+    """Each edge's blur variance across it (px^2): the second moment of the profile's slope,
+    smoothed along the boundary (a running median: one profile's noise is not its blur)."""
+    slope = np.maximum(-np.diff(prof, axis=1), 0.0)
+    slope -= 0.1 * slope.max(axis=1, keepdims=True)  # the noise floor of the flat parts
+    np.maximum(slope, 0.0, out=slope)
+    mids = 0.5 * (steps[1:] + steps[:-1])
+    total = np.maximum(slope.sum(axis=1), 1e-12)
+    mean = (slope * mids).sum(axis=1) / total
+    var = (slope * (mids[None, :] - mean[:, None]) ** 2).sum(axis=1) / total
+    var = np.maximum(var - step * step / 12.0, 0.0)  # the sampling's own spread
+    n = len(var)
+    if n >= 15:  # boundary points come in contour order: smooth over neighbours
+        k = 7
+        padded = np.concatenate([var[-k:], var, var[:k]])
+        windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1)
+        var = np.median(windows, axis=1)
+    return np.asarray(var, dtype=np.float64)
+
+
+def _curvature(ell: Ellipse, pts: Array) -> Array:
+    """The ellipse's curvature (1/px) at the points nearest ``pts`` (by their angle)."""
+    a, b = ell.semi_axes
+    ca, sa = math.cos(ell.angle), math.sin(ell.angle)
+    d = pts - ell.center
+    x = (ca * d[:, 0] + sa * d[:, 1]) / a
+    y = (-sa * d[:, 0] + ca * d[:, 1]) / b
+    phi = np.arctan2(y, x)
+    return np.asarray(
+        a * b / (a * a * np.sin(phi) ** 2 + b * b * np.cos(phi) ** 2) ** 1.5, dtype=np.float64
+    )
+
+
+def _linear(image: NDArray[np.uint8], gamma: float) -> NDArray[np.float32]:
+    """Grey levels in linear radiance (0-255 full scale): the camera's response undone."""
+    if gamma == 1.0:
+        return image.astype(np.float32)
+    lut = (255.0 * (np.arange(256, dtype=np.float64) / 255.0) ** gamma).astype(np.float32)
+    return np.asarray(lut[image], dtype=np.float32)
+
+
+def _linear_contrast(config: DetectorConfig) -> float:
+    """``min_contrast`` in linear radiance: the least contrast against a black plate."""
+    if config.gamma == 1.0:
+        return config.min_contrast
+    return float(255.0 * (config.min_contrast / 255.0) ** config.gamma)
 
 
 def detect_marker_detailed(

@@ -6,7 +6,7 @@ experiment and the benchmarks.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -71,6 +71,7 @@ def measure_marker(
     near: ArrayLike | None = None,
     detection: Detection | None = None,
     near_gate: float | None = None,
+    gamma: float | None = None,
 ) -> MarkerMeasurement:
     """Measure the marker pose in one image.
 
@@ -86,11 +87,17 @@ def measure_marker(
         near: (u, v) where the marker should be, to pick it among several in view (within
             ``near_gate`` px).
         detection: the marker's detection when already made (several markers: each in turn).
+        gamma: the camera's response (``grey = 255 radiance^(1/gamma)``) the edges are
+            measured through; None: the camera model's (``camera.gamma``, 1 unless its
+            calibration says otherwise).
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
     """
     fit: Fitter = fit_ellipse if fitter is None else fitter
+    response = camera.gamma if gamma is None else float(gamma)
+    if response != 1.0:
+        config = replace(config or DetectorConfig(), gamma=response)
     det = (
         detect_marker_detailed(image, config, fit, near, near_gate)
         if detection is None

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any
 
@@ -48,7 +48,10 @@ class DetectorConfig:
         min_semi_minor: smaller blobs are noise, not candidates.
         max_semi_major: larger ellipses are rejected as wrong size.
         min_axis_ratio: b / a below this is rejected (the marker seen almost edge-on).
-        min_contrast: grey levels between marker and plate needed to trust an edge.
+        min_contrast: grey levels between marker and plate needed to trust an edge; in a dim
+            frame the threshold follows the frame's own contrast (half its 1-99.9 % range).
+        min_frame_contrast: a frame whose 1-99.9 % range is below this is blank (black,
+            saturated, a lens cap): no marker can be measured in it.
         border_margin: a blob this close to the border is partly out of view.
         max_fill_error: |blob area / ellipse area - 1| above this is not an ellipse.
         max_coarse_residual: RMS distance of the blob contour to its coarse ellipse.
@@ -67,6 +70,7 @@ class DetectorConfig:
     max_semi_major: float = 400.0
     min_axis_ratio: float = 0.12
     min_contrast: float = 40.0
+    min_frame_contrast: float = 20.0
     border_margin: int = 2
     max_fill_error: float = 0.08
     max_coarse_residual: float = 1.5
@@ -180,30 +184,43 @@ def subpixel_edges(
     # contour inside the disc by curvature x s2 / 2. Motion blur adds variance along its
     # direction only, and moves no half-way point along it: the isotropic part is the least
     # variance found around the marker.
-    var = _blur_variance(prof[idx], steps, step)
-    if len(var):
-        t += 0.5 * _curvature(coarse, boundary[idx]) * float(np.percentile(var, 10))
+    if len(idx):
+        var = _blur_variance(prof[idx], steps, bright[idx], dark[idx])
+        t += 0.5 * _curvature(coarse, boundary[idx]) * var
     return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64)
 
 
-def _blur_variance(prof: Array, steps: Array, step: float) -> Array:
-    """Each edge's blur variance across it (px^2): the second moment of the profile's slope,
-    smoothed along the boundary (a running median: one profile's noise is not its blur)."""
-    slope = np.maximum(-np.diff(prof, axis=1), 0.0)
-    slope -= 0.1 * slope.max(axis=1, keepdims=True)  # the noise floor of the flat parts
-    np.maximum(slope, 0.0, out=slope)
-    mids = 0.5 * (steps[1:] + steps[:-1])
-    total = np.maximum(slope.sum(axis=1), 1e-12)
-    mean = (slope * mids).sum(axis=1) / total
-    var = (slope * (mids[None, :] - mean[:, None]) ** 2).sum(axis=1) / total
-    var = np.maximum(var - step * step / 12.0, 0.0)  # the sampling's own spread
-    n = len(var)
-    if n >= 15:  # boundary points come in contour order: smooth over neighbours
-        k = 7
-        padded = np.concatenate([var[-k:], var, var[:k]])
-        windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1)
-        var = np.median(windows, axis=1)
-    return np.asarray(var, dtype=np.float64)
+def _blur_variance(prof: Array, steps: Array, bright: Array, dark: Array) -> float:
+    """The marker's isotropic blur variance across its edge (px^2). Each profile's blur comes
+    from where it crosses 75 % and 25 % of the way from the marker's level to the plate's (for
+    a Gaussian blur of sigma they lie 1.349 sigma apart; unlike the slope's moments they do not
+    see the noise of the flat parts); the medians of 16 arcs of the boundary (it comes in
+    contour order) smooth the noise, and the least of them is the isotropic part (motion blur
+    adds to some directions only)."""
+    span = np.maximum(bright - dark, 1e-9)[:, None]
+    level = (prof - dark[:, None]) / span
+    sigma = (_crossing(level, steps, 0.25) - _crossing(level, steps, 0.75)) / 1.349
+    var = sigma * sigma
+    arcs = 16 if len(var) >= 64 else 1
+    usable = len(var) // arcs * arcs
+    if usable == 0:
+        return 0.0
+    per_arc = np.nanmedian(var[:usable].reshape(arcs, -1), axis=1)
+    found = per_arc[np.isfinite(per_arc)]
+    return float(found.min()) if len(found) else 0.0
+
+
+def _crossing(level: Array, steps: Array, at: float) -> Array:
+    """Where each normalised profile first falls below ``at`` (from the inside), or NaN."""
+    below = level < at
+    first = np.argmax(below, axis=1)
+    ok = below.any(axis=1) & (first > 0)
+    rows = np.arange(len(level))
+    f = np.maximum(first, 1)
+    v0, v1 = level[rows, f - 1], level[rows, f]
+    frac = np.clip((v0 - at) / np.maximum(v0 - v1, 1e-9), 0.0, 1.0)
+    t = steps[f - 1] + (steps[1] - steps[0]) * frac
+    return np.where(ok, t, np.nan)
 
 
 def _curvature(ell: Ellipse, pts: Array) -> Array:
@@ -260,6 +277,7 @@ def detect_marker_detailed(
     found = _marker_blobs(img, cfg)
     if isinstance(found, Detection):
         return found
+    cfg = _for_frame(img, cfg)
     accepted, reasons, candidates = found
     if accepted and near is not None:
         gate = cfg.near_gate if near_gate is None else near_gate
@@ -300,8 +318,24 @@ def detect_markers(
     found = _marker_blobs(img, cfg)
     if isinstance(found, Detection):
         return []
+    cfg = _for_frame(img, cfg)
     accepted, _, candidates = found
     return [_fit_blob(img, blob, cfg, fitter, candidates) for blob in accepted]
+
+
+def _levels(img: NDArray[np.uint8]) -> tuple[int, int]:
+    """The frame's 1 % and 99.9 % grey levels (from the 256-bin histogram: a full-frame sort
+    costs milliseconds)."""
+    cdf = np.cumsum(np.bincount(img.ravel(), minlength=256)) / img.size
+    return int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
+
+
+def _for_frame(img: NDArray[np.uint8], cfg: DetectorConfig) -> DetectorConfig:
+    """The limits for this frame: an edge's contrast threshold follows a dim frame's own
+    contrast (unchanged in a well-exposed one)."""
+    lo, hi = _levels(img)
+    edge = min(cfg.min_contrast, 0.5 * (hi - lo))
+    return cfg if edge == cfg.min_contrast else replace(cfg, min_contrast=edge)
 
 
 def _marker_blobs(
@@ -309,10 +343,8 @@ def _marker_blobs(
 ) -> Detection | tuple[list[tuple[NDArray[Any], Ellipse]], list[str], int]:
     """The bright blobs that pass as markers, the reasons the others did not, and how many
     there were; or a Detection saying why there can be none."""
-    # Percentiles from the 256-bin histogram: a full-frame sort costs milliseconds.
-    cdf = np.cumsum(np.bincount(img.ravel(), minlength=256)) / img.size
-    lo, hi = int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
-    if hi - lo < cfg.min_contrast:
+    lo, hi = _levels(img)
+    if hi - lo < cfg.min_frame_contrast:
         return Detection(
             DetectionStatus.NOT_FOUND,
             f'no contrast in the image (grey levels {lo:.0f}..{hi:.0f}): '

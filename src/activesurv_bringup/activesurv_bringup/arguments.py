@@ -17,7 +17,7 @@ from typing import Any
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import parse_fault, parse_kill
-from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
+from activesurv_bringup.experiments.session_options import SurveilOptions
 from activesurv_bringup.files import dds_profile_path
 from activesurv_bringup.rig.hardware import read
 from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
@@ -106,18 +106,7 @@ def output_dir(name: str, path: Path | None) -> None:
 
 def session(args: argparse.Namespace) -> None:
     """A surveillance session's options, checked as the session will check them."""
-    SurveilOptions(
-        duration=args.duration,
-        arrival_interval=args.arrival_interval,
-        demand_interval=args.demand_interval,
-        demand_at=parse_demand_at(args.demand_at),
-        max_bag_duration=args.max_bag_duration,
-        max_bag_size=args.max_bag_size,
-        keep_bags=args.keep_bags,
-        system=args.system,
-        seed=args.seed,
-        objects_at_once=args.objects_at_once,
-    )
+    SurveilOptions.from_args(args)
     if args.objects_at_once > 1 and getattr(args, 'hardware', None) is not None:
         raise ConfigError(
             '--objects-at-once > 1 needs the simulator: a real xy table carries one object'

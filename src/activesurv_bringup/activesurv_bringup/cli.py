@@ -929,7 +929,7 @@ def _experiment_command(args: argparse.Namespace) -> None:
 
 
 def _surveil_command(args: argparse.Namespace) -> None:
-    from activesurv_bringup.experiments.session_options import SurveilOptions, parse_demand_at
+    from activesurv_bringup.experiments.session_options import SurveilOptions
     from activesurv_bringup.rig.choice import choose
 
     new_output_dir(args.out)  # refused before anything is commissioned
@@ -947,20 +947,7 @@ def _surveil_command(args: argparse.Namespace) -> None:
         hw = with_measured_delays(hw, calibration_dir(hw, args.calibration), say)
     else:
         rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
-    session = SurveilOptions(
-        rig=rig,
-        duration=args.duration,
-        arrival_interval=args.arrival_interval,
-        demand_interval=args.demand_interval,
-        demand_at=parse_demand_at(args.demand_at),
-        max_bag_duration=args.max_bag_duration,
-        max_bag_size=args.max_bag_size,
-        keep_bags=args.keep_bags,
-        system=args.system,
-        seed=args.seed,
-        objects_at_once=args.objects_at_once,
-    )
-    surveil(args.out, session, run_options(args), hw, args.home)
+    surveil(args.out, SurveilOptions.from_args(args, rig), run_options(args), hw, args.home)
 
 
 def _bag_command(args: argparse.Namespace) -> None:

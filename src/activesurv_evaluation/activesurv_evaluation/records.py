@@ -24,6 +24,30 @@ def run_obstacles(record: RunRecord) -> tuple[Obstacle, ...] | None:
     return obstacles_from_list(list(record.obstacles))
 
 
+class DemandMessages:
+    """Each demand's capture request, observations (with their receive times) and estimate
+    (with its bag time, ns), gathered from a bag message by message."""
+
+    def __init__(self) -> None:
+        self.requests: dict[int, Any] = {}
+        self.observations: dict[int, list[tuple[Any, float]]] = {}
+        self.estimates: dict[int, tuple[Any, int]] = {}
+
+    def hear_demand(self, m: Any) -> bool:
+        """Note a request, observation or estimate; False for any other topic."""
+        if m.topic == '/capture_request':
+            self.requests.setdefault(int(m.msg.demand_index), m.msg)
+        elif m.topic == '/marker_observations':
+            self.observations.setdefault(int(m.msg.demand_index), []).append(
+                (m.msg, m.t_ns * 1e-9)
+            )
+        elif m.topic == '/target_estimate':
+            self.estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
+        else:
+            return False
+        return True
+
+
 def msg_stamp(msg: Any) -> float:
     """A stamped message's header time (s)."""
     return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)

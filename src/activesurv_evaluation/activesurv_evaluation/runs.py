@@ -25,7 +25,13 @@ import numpy as np
 
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
-from activesurv_evaluation.records import demand_record, msg_stamp, msg_vector, run_obstacles
+from activesurv_evaluation.records import (
+    DemandMessages,
+    demand_record,
+    msg_stamp,
+    msg_vector,
+    run_obstacles,
+)
 from activesurv_evaluation.results import (
     DemandRecord,
     PredictionLog,
@@ -70,22 +76,20 @@ def experiment_facts(record: RunRecord) -> dict[str, Any]:
     }
 
 
-class _RunBag:
+class _RunBag(DemandMessages):
     """What an experiment's bag says, gathered message by message."""
 
     def __init__(self, origin: float) -> None:
+        super().__init__()
         self.origin = origin
         self.truth = TimeSeries(6, capacity=10**7)
-        self.requests: dict[int, Any] = {}
-        self.observations: dict[int, list[tuple[Any, float]]] = {}
-        self.estimates: dict[int, tuple[Any, int]] = {}
         self.steps = StepTimes()
         self.predicted = PredictionLog()
         self.tracked = TrackRecorder()
         self.faults = StageFaults()
 
     def hear(self, m: Any) -> None:
-        if self.steps.hear(m.topic, m.msg, m.t_ns * 1e-9):
+        if self.steps.hear(m.topic, m.msg, m.t_ns * 1e-9) or self.hear_demand(m):
             return
         if m.topic == '/demand_horizon':
             made = msg_stamp(m.msg)
@@ -100,14 +104,6 @@ class _RunBag:
             self.tracked.on_truth(msg_stamp(m.msg), m.msg)
         elif m.topic == '/object_tracks':
             self.tracked.on_tracks(msg_stamp(m.msg), m.msg)
-        elif m.topic == '/capture_request':
-            self.requests.setdefault(int(m.msg.demand_index), m.msg)
-        elif m.topic == '/marker_observations':
-            self.observations.setdefault(int(m.msg.demand_index), []).append(
-                (m.msg, m.t_ns * 1e-9)
-            )
-        elif m.topic == '/target_estimate':
-            self.estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
         elif m.topic == '/diagnostics':
             self.faults.hear(msg_stamp(m.msg) - self.origin, m.msg)
 

@@ -16,7 +16,13 @@ import numpy as np
 from activesurv_common.occlusion import PLATE_HALF_SIZE, obstacles_to_list, plate_box
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
-from activesurv_evaluation.records import demand_record, msg_stamp, msg_vector, run_obstacles
+from activesurv_evaluation.records import (
+    DemandMessages,
+    demand_record,
+    msg_stamp,
+    msg_vector,
+    run_obstacles,
+)
 from activesurv_evaluation.timing import StepTimes, step_topics
 from activesurv_evaluation.tracking import TrackRecorder, track_metrics
 from activesurv_recording.bagio import read_bag
@@ -94,17 +100,15 @@ def evaluate_surveil(bag: Path) -> dict[str, Any]:
     }
 
 
-class _SessionBag:
+class _SessionBag(DemandMessages):
     """What a session's bag says, gathered message by message."""
 
     def __init__(self, tracked: TrackRecorder) -> None:
+        super().__init__()
         self.tracked = tracked
         # One truth per lane (several objects at once publish a state per lane and tick).
         self.truths: dict[int, TimeSeries] = {}
         self.presents: dict[int, TimeSeries] = {}
-        self.requests: dict[int, Any] = {}
-        self.observations: dict[int, list[tuple[Any, float]]] = {}
-        self.estimates: dict[int, tuple[Any, int]] = {}
         self.steps = StepTimes()
         self.object_of: dict[int, int] = {}
         self.confirmed: dict[int, float] = {}
@@ -112,7 +116,7 @@ class _SessionBag:
 
     def hear(self, m: Any) -> None:
         self.end = max(self.end, m.t_ns * 1e-9)
-        if self.steps.hear(m.topic, m.msg, m.t_ns * 1e-9):
+        if self.steps.hear(m.topic, m.msg, m.t_ns * 1e-9) or self.hear_demand(m):
             return
         if m.topic == '/object_state':
             t = msg_stamp(m.msg)
@@ -132,14 +136,6 @@ class _SessionBag:
                 oid = int(d.object_id)
                 self.object_of[int(d.index)] = oid
                 self.confirmed.setdefault(oid, msg_stamp(m.msg))
-        elif m.topic == '/capture_request':
-            self.requests.setdefault(int(m.msg.demand_index), m.msg)
-        elif m.topic == '/marker_observations':
-            self.observations.setdefault(int(m.msg.demand_index), []).append(
-                (m.msg, m.t_ns * 1e-9)
-            )
-        elif m.topic == '/target_estimate':
-            self.estimates.setdefault(int(m.msg.demand_index), (m.msg, m.t_ns))
 
 
 def _demand_rows(heard: _SessionBag, record: RunRecord, obstacles: Any) -> list[dict[str, Any]]:

@@ -46,12 +46,33 @@ def interface_dir() -> Path:
     raise BagError('cannot find the activesurv_interfaces message definitions')
 
 
-def typestore() -> Any:
-    """Jazzy typestore with the activesurv message types registered."""
-    ts = get_typestore(Stores.ROS2_JAZZY)
+def our_types() -> dict[str, Any]:
+    """Today's activesurv message types (from the installed definitions)."""
     types: dict[str, Any] = {}
     for f in sorted(interface_dir().glob('*.msg')):
         types.update(get_types_from_msg(f.read_text(), f'activesurv_interfaces/msg/{f.stem}'))
+    return types
+
+
+def typestore() -> Any:
+    """Jazzy typestore with the activesurv message types registered."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    ts.register(our_types())
+    return ts
+
+
+def reading_typestore(connections: Any) -> Any:
+    """A typestore for reading a bag: every type as the bag's own definitions have it (a bag
+    recorded before a message gained a field reads as it was written), today's definitions
+    only for types the bag does not define."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for c in connections:
+        if c.msgdef.data and c.msgtype not in ts.types:
+            types.update(get_types_from_msg(c.msgdef.data, c.msgtype))
+    types = {k: v for k, v in types.items() if k not in ts.types}
+    for k, v in our_types().items():
+        types.setdefault(k, v)
     ts.register(types)
     return ts
 
@@ -324,15 +345,9 @@ def read_bag(path: Path, topics: set[str] | None = None) -> Iterator[BagMessage]
             f'bag {path} has no metadata.yaml (its recorder was killed?); '
             f'recover it with: activesurv bag reindex {path}'
         )
-    ts = typestore()
     try:
         with Reader(path) as reader:
-            types: dict[str, Any] = {}
-            for c in reader.connections:
-                if c.msgtype not in ts.types and c.msgdef.data:
-                    types.update(get_types_from_msg(c.msgdef.data, c.msgtype))
-            if types:
-                ts.register(types)
+            ts = reading_typestore(reader.connections)
             conns = [c for c in reader.connections if topics is None or c.topic in topics]
             for conn, t_ns, raw in reader.messages(connections=conns):
                 yield BagMessage(

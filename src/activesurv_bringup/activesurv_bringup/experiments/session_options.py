@@ -96,6 +96,23 @@ class SurveilOptions:
                     f'{self.objects_at_once}'
                 )
 
+    @classmethod
+    def from_args(cls, args: Any, rig: RigChoice | None = None) -> SurveilOptions:
+        """The options of ``activesurv surveil`` (checked on the way: ConfigError)."""
+        return cls(
+            rig=rig,
+            duration=args.duration,
+            arrival_interval=args.arrival_interval,
+            demand_interval=args.demand_interval,
+            demand_at=parse_demand_at(args.demand_at),
+            max_bag_duration=args.max_bag_duration,
+            max_bag_size=args.max_bag_size,
+            keep_bags=args.keep_bags,
+            system=args.system,
+            seed=args.seed,
+            objects_at_once=args.objects_at_once,
+        )
+
 
 def parse_demand_at(texts: Sequence[str]) -> tuple[float, ...]:
     """``x=0.25`` (a line x = 0.25 m) for each text.

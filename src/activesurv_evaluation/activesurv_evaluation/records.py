@@ -24,6 +24,20 @@ def run_obstacles(record: RunRecord) -> tuple[Obstacle, ...] | None:
     return obstacles_from_list(list(record.obstacles))
 
 
+# What every evaluator reads: the truth, the overhead tracks, the horizon, and each demand's
+# request, observations and estimate.
+DEMAND_TOPICS = frozenset(
+    {
+        '/object_state',
+        '/object_tracks',
+        '/demand_horizon',
+        '/capture_request',
+        '/marker_observations',
+        '/target_estimate',
+    }
+)
+
+
 class DemandMessages:
     """Each demand's capture request, observations (with their receive times) and estimate
     (with its bag time, ns), gathered from a bag message by message."""

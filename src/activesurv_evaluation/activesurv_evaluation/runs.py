@@ -26,6 +26,7 @@ import numpy as np
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_evaluation.records import (
+    DEMAND_TOPICS,
     DemandMessages,
     demand_record,
     msg_stamp,
@@ -46,15 +47,7 @@ from activesurv_recording.bagio import read_bag
 from activesurv_recording.errors import BagError
 from activesurv_recording.run_record import ExperimentRun, RunRecord, read_run_record
 
-TOPICS = {
-    '/object_state',
-    '/object_tracks',
-    '/capture_request',
-    '/marker_observations',
-    '/target_estimate',
-    '/demand_horizon',
-    '/diagnostics',
-}
+TOPICS = DEMAND_TOPICS | {'/diagnostics'}  # an experiment's: its stage faults too
 
 
 def experiment_facts(record: RunRecord) -> dict[str, Any]:

@@ -17,6 +17,7 @@ from activesurv_common.occlusion import PLATE_HALF_SIZE, obstacles_to_list, plat
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_evaluation.records import (
+    DEMAND_TOPICS,
     DemandMessages,
     demand_record,
     msg_stamp,
@@ -30,14 +31,7 @@ from activesurv_recording.errors import BagError
 from activesurv_recording.run_record import RunRecord, SessionRun, read_run_record
 from activesurv_sim.stream import ObjectStream
 
-SESSION_TOPICS = {
-    '/object_state',
-    '/object_tracks',
-    '/capture_request',
-    '/marker_observations',
-    '/target_estimate',
-    '/demand_horizon',
-}
+SESSION_TOPICS = DEMAND_TOPICS
 
 
 def evaluate_surveil(bag: Path) -> dict[str, Any]:

@@ -13,6 +13,7 @@ import os
 import struct
 import sys
 from collections.abc import Iterator
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -332,7 +333,7 @@ def needs_reindex(bag: Path) -> bool:
     return bag.is_dir() and not (bag / 'metadata.yaml').exists() and any(bag.glob('*.mcap'))
 
 
-def read_bag(path: Path, topics: set[str] | None = None) -> Iterator[BagMessage]:
+def read_bag(path: Path, topics: AbstractSet[str] | None = None) -> Iterator[BagMessage]:
     """Messages of a bag in time order, deserialised with the definitions stored in it.
 
     Raises:

@@ -42,14 +42,11 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from activesurv_bringup import __version__, arguments
-from activesurv_bringup.errors import USER_ERRORS, ConfigError
+from activesurv_bringup import __version__
+from activesurv_bringup.errors import USER_ERRORS, ConfigError, HardwareCheckError
 from activesurv_bringup.experiments.options import PROCESSES, RECORD_FRAMES, RunOptions
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
-from activesurv_bringup.rig.hardware import HardwareCheckError
-from activesurv_bringup.rig.hardware import add_arguments as add_hardware_arguments
-from activesurv_bringup.rig.hardware import run as run_hardware_command
-from activesurv_bringup.rig.rigs import add_arguments as add_rig_arguments
+from activesurv_bringup.rig.parsers import add_hardware_arguments, add_rig_arguments
 from activesurv_common.lifetime import STOP_SIGNALS, StopRequested
 from activesurv_launch.domains import isolate
 
@@ -843,6 +840,8 @@ def main(argv: list[str] | None = None) -> int:
     for sig in STOP_SIGNALS:
         signal.signal(sig, signal.default_int_handler)
     try:
+        from activesurv_bringup import arguments  # the checks load what they check: after --help
+
         arguments.check(args)
         if simulated(args):
             claim = isolate(os.environ)
@@ -957,6 +956,7 @@ def _bag_command(args: argparse.Namespace) -> None:
 
 
 def _lab_command(args: argparse.Namespace) -> None:
+    from activesurv_bringup import arguments
     from activesurv_bringup.rig.lab import run_lab
 
     run_lab(
@@ -988,6 +988,8 @@ def _hardware_command(args: argparse.Namespace) -> None:
     if args.hardware_command == 'measure-delay':
         print('\n'.join(measure_delay(args)))
     else:
+        from activesurv_bringup.rig.hardware import run as run_hardware_command
+
         print('\n'.join(run_hardware_command(args)))
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from activesurv_hardware.errors import HardwareError
 from activesurv_launch.errors import LaunchError as LaunchError
 from activesurv_launch.errors import NodeDiedError as NodeDiedError
@@ -15,6 +17,17 @@ class BringupError(Exception):
 
 class ConfigError(BringupError, ValueError):
     """A configuration file or command-line value is invalid."""
+
+
+class HardwareCheckError(ConfigError):
+    """A hardware file with mistakes: :attr:`problems` holds one line per mistake."""
+
+    def __init__(self, path: Path | str, problems: list[str]) -> None:
+        n = len(problems)
+        super().__init__(
+            f'hardware file {path}: {n} mistake{"s" if n > 1 else ""}:\n  ' + '\n  '.join(problems)
+        )
+        self.problems = problems
 
 
 # What a command reports as a one-line error rather than a traceback.

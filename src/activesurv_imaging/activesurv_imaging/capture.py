@@ -32,10 +32,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, Generic, TypeVar
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_common.camera_model import CameraModel
+from activesurv_common.camera_model import CameraModel, dynamic_camera
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, load_obstacles, sight_blocked
@@ -43,6 +44,7 @@ from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
 from activesurv_common.trigger import Trigger
 from activesurv_imaging.errors import ImagingError, VisionErrors
+from activesurv_imaging.marker_pose import measure_marker
 from activesurv_imaging.observation import (
     Observation,
     ObservationStatus,
@@ -184,11 +186,6 @@ class CaptureCore(Generic[F]):
     def warm_up(self) -> None:
         """Measure a synthetic marker once, so that the first real demand does not pay for the
         pipeline's lazy set-up (imports and first calls: 50-120 ms measured at rtf 1)."""
-        import cv2
-
-        from activesurv_common.camera_model import dynamic_camera
-        from activesurv_imaging.marker_pose import measure_marker
-
         img = np.full((480, 640), 25, np.uint8)
         cv2.ellipse(img, (320, 240), (110, 80), 20.0, 0.0, 360.0, 230, -1, cv2.LINE_AA)
         img = np.asarray(cv2.GaussianBlur(img, (0, 0), 0.8), dtype=np.uint8)

@@ -29,8 +29,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+import rclpy
 import yaml
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
 
+from activesurv_common.ros.node import make_executor, one_line, spin_until_signal
 from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
 
@@ -61,17 +65,6 @@ def load_members(path: Path) -> list[NodeSpec]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    # rclpy in the container process only: the launcher that imports this module needs none.
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.signals import SignalHandlerOptions
-
-    from activesurv_common.ros.node import (
-        make_executor,
-        one_line,
-        spin_until_signal,
-    )
-
     args = sys.argv[1:] if argv is None else argv
     if len(args) < 1 or args[0].startswith('-'):
         print('usage: python -m activesurv_launch.container MEMBERS.yaml', file=sys.stderr)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_sim.rig import load_rig
 from activesurv_sim.xytable import (
     PARKED,
     TABLE_RANGE,
@@ -373,8 +374,6 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
     speed, accel = float(p['speed']), float(p['acceleration'])
     error = None
     if p.get('rig_file'):
-        from activesurv_sim.rig import load_rig
-
         error = load_rig(str(p['rig_file'])).table_offset
     if p['path_type'] == 'stream':
         return ObjectStream(

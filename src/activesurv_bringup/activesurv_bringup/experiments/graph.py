@@ -17,25 +17,29 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import yaml
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
+from activesurv_bringup.observer import Observer
 from activesurv_bringup.specs import mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
+from activesurv_common.ros import qos, topics
 from activesurv_dispatch.sensors import Sensor, setup_to_dict
+from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
+from activesurv_launch.compose import Composition
 from activesurv_launch.launcher import Launcher, NodeSpec, container
+from activesurv_launch.netns import NetnsHosts
 from activesurv_launch.runner import NodeRunner
 from activesurv_launch.session import GraphSession
 from activesurv_recording.run_record import RunRecord
 from activesurv_sim.rig import save_rig
-
-if TYPE_CHECKING:
-    from activesurv_launch.netns import NetnsHosts
 
 Progress = Callable[[str], None]
 
@@ -311,52 +315,41 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
     return out
 
 
-class _Monitor:
-    """Watches /clock and the estimates from inside the orchestrator."""
+class RunMonitor(Observer):
+    """The orchestrator's node in a run: simulated time (or run time on a rig's wall clock),
+    the estimates, and what the recorder holds of every per-demand event heard here."""
 
     def __init__(
         self, expected_nodes: Sequence[str], time_origin: float | None = None, namespace: str = ''
     ) -> None:
-        # The monitor is a node of the run: rclpy only when a run starts (as run_graph).
-        import rclpy
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-        from rosgraph_msgs.msg import Clock
-        from std_msgs.msg import String
-
-        from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
-
-        self.rclpy = rclpy
-        self.node = rclpy.create_node('activesurv_monitor', namespace=namespace or None)
+        super().__init__('activesurv_monitor', namespace)
         self.sim_time = 0.0
         self.time_origin = time_origin  # a hardware run: run time is wall time since it
-        self.estimates: dict[int, Any] = {}
+        self.estimates: dict[int, TargetEstimate] = {}
         self.expected_nodes = set(expected_nodes)
-        self.node.create_subscription(
-            Clock,
-            '/clock',
-            self._on_clock,
-            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT),
-        )
         self.recorded: dict[str, int] = {}
-        self.node.create_subscription(String, '/activesurv/recorder_status', self._on_recorder, 10)
-        events = QoSProfile(
-            depth=50,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
-        self.node.create_subscription(TargetEstimate, 'target_estimate', self._on_estimate, events)
+        self.heard: dict[str, set[tuple[int, str]]] = {}
+        self._estimate_topic = ''
+
+    def on_start(self) -> None:
+        node = self.node
+        node.create_subscription(Clock, topics.CLOCK, self._on_clock, qos.CLOCK_SUBSCRIBER)
+        node.create_subscription(String, topics.RECORDER_STATUS, self._on_recorder, 10)
         # Per-demand events heard here, by resolved topic name: the run stops only once the
         # recorder has as many of each (a reliable reader holds every message after a lost one
         # until the writer repairs it, which over a loaded network can take seconds).
-        self._estimate_topic = self.node.resolve_topic_name('target_estimate')
-        self.heard: dict[str, set[tuple[int, str]]] = {self._estimate_topic: set()}
+        self._estimate_topic = node.resolve_topic_name(topics.TARGET_ESTIMATE)
+        self.heard = {self._estimate_topic: set()}
+        node.create_subscription(
+            TargetEstimate, topics.TARGET_ESTIMATE, self._on_estimate, qos.EVENTS_LATCHED
+        )
         for msg_type, name in (
-            (MarkerObservation, 'marker_observations'),
-            (CaptureRequest, 'capture_request'),
+            (MarkerObservation, topics.MARKER_OBSERVATIONS),
+            (CaptureRequest, topics.CAPTURE_REQUEST),
         ):
-            topic = self.node.resolve_topic_name(name)
+            topic = node.resolve_topic_name(name)
             self.heard[topic] = set()
-            self.node.create_subscription(msg_type, name, self._hear(topic), events)
+            node.create_subscription(msg_type, name, self._hear(topic), qos.EVENTS_LATCHED)
 
     def _hear(self, topic: str) -> Callable[[Any], None]:
         def on_event(msg: Any) -> None:
@@ -364,14 +357,14 @@ class _Monitor:
 
         return on_event
 
-    def _on_clock(self, msg: Any) -> None:
+    def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
 
-    def _on_recorder(self, msg: Any) -> None:
+    def _on_recorder(self, msg: String) -> None:
         with contextlib.suppress(ValueError, AttributeError):
             self.recorded = {str(k): int(v) for k, v in json.loads(msg.data).items()}
 
-    def _on_estimate(self, msg: Any) -> None:
+    def _on_estimate(self, msg: TargetEstimate) -> None:
         self.estimates[int(msg.demand_index)] = msg
         self.heard[self._estimate_topic].add((int(msg.demand_index), ''))
 
@@ -380,21 +373,12 @@ class _Monitor:
         out = {t: len(k) - self.recorded.get(t, 0) for t, k in self.heard.items()}
         return {t: n for t, n in out.items() if n > 0}
 
-    def spin(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.rclpy.spin_once(
-                self.node, timeout_sec=min(0.05, max(end - time.monotonic(), 0.0))
-            )
-            if self.time_origin is not None:
-                self.sim_time = time.time() - self.time_origin
+    def on_spin(self) -> None:
+        if self.time_origin is not None:
+            self.sim_time = time.time() - self.time_origin
 
     def missing_nodes(self) -> set[str]:
-        present = {n for n, _ in self.node.get_node_names_and_namespaces()}
-        return self.expected_nodes - present
-
-    def close(self) -> None:
-        self.node.destroy_node()
+        return self.missing(self.expected_nodes)
 
 
 def _chaos(
@@ -466,7 +450,7 @@ def run_graph(
     hosts: NetnsHosts | None = None,
     until: Until | None = None,
     specs: list[NodeSpec] | None = None,
-    before_start: Callable[[Any, Progress], None] | None = None,
+    before_start: Callable[[RunMonitor, Progress], None] | None = None,
 ) -> Path:
     """Run ``exp`` as a node graph; returns the bag directory.
 
@@ -486,8 +470,6 @@ def run_graph(
         ConfigError: for options that do not fit this run (a node to kill that is not in it).
         NodeDiedError: if a node dies, or the graph does not come up in time.
     """
-    import rclpy  # only a run needs the ROS client library: report and replay tools load without
-
     opts = options or RunOptions()
     out_dir.mkdir(parents=True, exist_ok=True)
     bag = out_dir / 'bag'
@@ -515,7 +497,7 @@ def run_graph(
         specs = group_processes(specs[:-1], alone) + specs[-1:]
     rule = until or experiment_until(exp, opts.rtf)
     with scoped_environ(opts.environment()):
-        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rclpy, rule, before_start)
+        return _run(out_dir, bag, specs, by_name, opts, progress, hosts, rule, before_start)
 
 
 def _run(
@@ -526,40 +508,30 @@ def _run(
     opts: RunOptions,
     progress: Progress,
     hosts: NetnsHosts | None,
-    rclpy: Any,
     until: Until,
-    before_start: Callable[[Any, Progress], None] | None = None,
+    before_start: Callable[[RunMonitor, Progress], None] | None = None,
 ) -> Path:
     startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
     env = dict(os.environ)
-    owns_rclpy = not rclpy.ok()
-    if owns_rclpy:
-        from rclpy.signals import SignalHandlerOptions  # with rclpy above
-
-        # SIGINT stays Python's (KeyboardInterrupt, or a session's own handler): the nodes are
-        # stopped in order in ``finally``, rather than the monitor's context shut under it.
-        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    monitor = _Monitor(
+    monitor = RunMonitor(
         [m.name for s in specs[:-1] for m in (s.members or (s,))],
         opts.time_origin,
         opts.namespace,
     )
-    launcher: NodeRunner
-    if opts.compose:
-        from activesurv_launch.compose import Composition  # every node's module in-process
-
-        launcher = Composition()
-    else:
-        prefixes = (
-            {h: hosts.prefix(h) for h in hosts.names if h != 'core'} | {'core': []}
-            if hosts is not None
-            else None
-        )
-        launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
-    # SIGINT, SIGTERM and SIGHUP stop the run cleanly: the graph is drained and stopped, then
-    # StopRequested (the bag is closed by then).
-    try:
+    with monitor:  # rclpy is started here when no one in this process has
+        launcher: NodeRunner
+        if opts.compose:
+            launcher = Composition()  # every node's module in-process
+        else:
+            prefixes = (
+                {h: hosts.prefix(h) for h in hosts.names if h != 'core'} | {'core': []}
+                if hosts is not None
+                else None
+            )
+            launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
+        # SIGINT, SIGTERM and SIGHUP stop the run cleanly: the graph is drained and stopped,
+        # then StopRequested (the bag is closed by then).
         with GraphSession(
             launcher, specs[:-1], monitor.missing_nodes, monitor.spin, startup_timeout
         ) as graph:
@@ -573,17 +545,13 @@ def _run(
             graph.raise_if_stopping()
             graph.start(specs[-1:])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
-    finally:
-        monitor.close()
-        if owns_rclpy:
-            rclpy.try_shutdown()
     return bag
 
 
 def _watch(
     graph: GraphSession,
     launcher: NodeRunner,
-    monitor: Any,
+    monitor: RunMonitor,
     until: Until,
     opts: RunOptions,
     by_name: dict[str, NodeSpec],

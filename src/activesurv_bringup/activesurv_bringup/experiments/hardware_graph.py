@@ -17,6 +17,7 @@ What changes against a simulated run (:func:`~activesurv_bringup.experiments.gra
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Sequence
@@ -25,11 +26,13 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from sensor_msgs.msg import JointState
 
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.graph import (
     Progress,
+    RunMonitor,
     core_specs,
     locator_spec,
     run_graph,
@@ -37,10 +40,12 @@ from activesurv_bringup.experiments.graph import (
 from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
 from activesurv_common.calibration import pose_to_list
+from activesurv_common.ros import qos, topics
 from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_hardware.hardware_file import CameraEntry, Hardware
 from activesurv_imaging.capture import ImagerConfig
+from activesurv_interfaces.msg import StageGoal
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.run_record import OnRig, RunRecord
 from activesurv_sim.conversions import TABLE_ID
@@ -245,48 +250,27 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
     """``before_start`` of a hardware run: every camera to its initial pose, before run time 0
     (the paper placed them there before each experiment; a static system never moves them)."""
 
-    def place(monitor: Any, progress: Any) -> None:
-        # ROS messages only when a run places its cameras: the report tools load this module.
-        from sensor_msgs.msg import JointState
-
-        from activesurv_common.ros import qos, topics
-        from activesurv_interfaces.msg import StageGoal
-
-        node = monitor.node
-        states: dict[str, Any] = {}
-        first: dict[str, Any] = {}  # each camera's first joint state: has it moved since?
+    def place(monitor: RunMonitor, progress: Progress) -> None:
+        first: dict[str, JointState] = {}  # each camera's first joint state: has it moved since?
         taken: set[str] = set()  # cameras the dispatcher already drives (pre-positioning)
         goals = initial_goals(exp)
         ours = {cid: list(q) for cid, _, q in goals}
-        subs, pubs = [], []
+        states = monitor.states
 
-        def on_state(cid: str, m: Any) -> None:
-            states[cid] = m
-            first.setdefault(cid, m)
-
-        def on_goal(cid: str, m: Any) -> None:
+        def on_goal(cid: str, m: StageGoal) -> None:
             if any(abs(a - b) > 1e-9 for a, b in zip(m.positions, ours[cid], strict=False)):
                 taken.add(cid)
 
-        for cid, _, _ in goals:
-            subs.append(
-                node.create_subscription(
-                    JointState,
-                    topics.joint_states(cid),
-                    lambda m, cid=cid: on_state(cid, m),
-                    qos.SENSOR,
-                )
+        def on_state(cid: str, m: JointState) -> None:
+            first.setdefault(cid, m)
+
+        monitor.watch_stages(ours, on_state)
+        for cid in ours:
+            monitor.node.create_subscription(
+                StageGoal, topics.goal(cid), functools.partial(on_goal, cid), qos.GOAL
             )
-            subs.append(
-                node.create_subscription(
-                    StageGoal, topics.goal(cid), lambda m, cid=cid: on_goal(cid, m), qos.GOAL
-                )
-            )
-            pubs.append(node.create_publisher(StageGoal, topics.goal(cid), qos.GOAL))
-        for pub, (_, names, q) in zip(pubs, goals, strict=True):
-            msg = StageGoal(joint_names=list(names), positions=list(q))
-            msg.max_velocities = [0.0] * len(q)
-            pub.publish(msg)
+        for cid, names, q in goals:
+            monitor.send_goal(cid, names, q)
 
         def moved(cid: str) -> bool:
             a, b = first.get(cid), states.get(cid)

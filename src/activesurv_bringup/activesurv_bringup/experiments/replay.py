@@ -19,9 +19,13 @@ from typing import Any
 
 import cv2
 import numpy as np
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 
 from activesurv_bringup.errors import BagError
+from activesurv_bringup.observer import Observer
 from activesurv_bringup.specs import live_view_spec, mount_parameters
+from activesurv_common.ros.conversions import gray_to_image, sec_to_time
 from activesurv_dispatch.sensors import load_setup, setup_from_dict
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_launch.session import GraphSession
@@ -97,8 +101,6 @@ def _inputs(record: RunRecord) -> set[str]:
 
 def _as_image(m: Any) -> tuple[str, Any]:
     """A recorded demand frame (PNG) as the camera's ``image_raw`` message."""
-    from activesurv_common.ros.conversions import gray_to_image, sec_to_time
-
     gray = cv2.imdecode(np.frombuffer(bytes(m.msg.data), np.uint8), cv2.IMREAD_GRAYSCALE)
     if gray is None:
         raise BagError(f'{m.topic}: a frame that is not a PNG image')
@@ -120,11 +122,6 @@ def run_replay(
     Raises:
         BagError: for an unreadable bag; NodeDiedError if a replay node dies.
     """
-    # The ROS client library only when a replay runs (comparing bags needs none).
-    import rclpy
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from rosgraph_msgs.msg import Clock
-
     record = read_run_record(bag)
     messages = list(read_bag(bag, _inputs(record)))
     if not messages:
@@ -134,10 +131,6 @@ def run_replay(
     specs = replay_specs(record, new_bag)
     if foxglove is not None:
         specs.insert(-1, live_view_spec(foxglove))
-    owns = not rclpy.ok()
-    if owns:
-        rclpy.init()
-    node = rclpy.create_node('activesurv_replayer')
     # Each topic is offered with the QoS its publishers offered when it was recorded
     # (``playback_qos``, what ``ros2 bag play`` does), so a bag replays the same way with either.
     # Bags from before the recorder noted offered QoS, or ACTIVESURV_REPLAY_RECORDED_QOS=0,
@@ -150,50 +143,40 @@ def run_replay(
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
-    pubs: dict[str, Any] = {}
-    for m in messages:
-        if m.topic.endswith('/demand_frame'):
-            image_topic = m.topic.removesuffix('/demand_frame') + '/image_raw'
-            if image_topic not in pubs:
-                pubs[image_topic] = node.create_publisher(
-                    message_class('sensor_msgs/msg/Image'), image_topic, fallback
-                )
-        elif m.topic not in pubs:
-            qos = playback_qos(recorded.get(m.topic, []), fallback)
-            pubs[m.topic] = node.create_publisher(message_class(m.msgtype), m.topic, qos)
-    clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
-    launcher = Launcher(specs, workdir=out_dir / 'logs', env=dict(os.environ))
+    with Observer('activesurv_replayer') as obs:
+        node = obs.node
+        pubs: dict[str, Any] = {}
+        for m in messages:
+            if m.topic.endswith('/demand_frame'):
+                image_topic = m.topic.removesuffix('/demand_frame') + '/image_raw'
+                if image_topic not in pubs:
+                    pubs[image_topic] = node.create_publisher(
+                        message_class('sensor_msgs/msg/Image'), image_topic, fallback
+                    )
+            elif m.topic not in pubs:
+                qos = playback_qos(recorded.get(m.topic, []), fallback)
+                pubs[m.topic] = node.create_publisher(message_class(m.msgtype), m.topic, qos)
+        clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
+        launcher = Launcher(specs, workdir=out_dir / 'logs', env=dict(os.environ))
 
-    def clock(t_ns: int) -> None:
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
-        clock_pub.publish(msg)
+        def clock(t_ns: int) -> None:
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
+            clock_pub.publish(msg)
 
-    def spin(seconds: float) -> None:
-        rclpy.spin_once(node, timeout_sec=seconds)
-
-    names = {s.name for s in specs}
-
-    def missing() -> set[str]:
-        return names - {n for n, _ in node.get_node_names_and_namespaces()}
-
-    try:
+        names = {s.name for s in specs}
         with GraphSession(
             launcher,
             specs,
-            missing,
-            spin,
+            lambda: obs.missing(names),
+            obs.spin,
             settle=0.0,
             trap_signals=False,  # Ctrl-C ends a replay at once: nothing to finish
         ) as graph:
             _play(
-                graph, node, pubs, clock_pub, clock, spin, messages, rtf, progress, faithful,
+                graph, node, pubs, clock_pub, clock, obs.spin, messages, rtf, progress, faithful,
                 len(specs),
             )  # fmt: skip
-    finally:
-        node.destroy_node()
-        if owns:
-            rclpy.try_shutdown()
     return new_bag
 
 

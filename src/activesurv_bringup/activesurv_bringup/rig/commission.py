@@ -18,12 +18,10 @@ simulation each estimate's error against the rig).
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -34,8 +32,9 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from activesurv_bringup.errors import ConfigError, NodeDiedError
+from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.files import new_output_dir
+from activesurv_bringup.observer import Observer
 from activesurv_bringup.rig.board_views import (
     Look,
     board_corners,
@@ -49,6 +48,7 @@ from activesurv_common.calibration import Calibration
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
+from activesurv_common.ros import topics
 from activesurv_common.trigger import SourceKind
 from activesurv_dispatch.sensors import Setup, load_setup
 from activesurv_hardware.hardware_file import Hardware
@@ -63,15 +63,13 @@ from activesurv_imaging.commissioning import (
 from activesurv_imaging.errors import CalibrationError
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_launch.session import GraphSession
-from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
 from activesurv_sim.rig import Rig, save_rig
+from activesurv_sim.xytable import TABLE_RANGE
 
 Array = NDArray[np.float64]
 Progress = Callable[[str], None]
-TABLE_RANGE = ((0.0, 0.5), (0.0, 0.2))  # m, Table I
-FRAMES_KEPT = 60  # per camera: two seconds of a 30 Hz driver
 C1_TURN = 0.02  # rad: keeps a centred board whole in a 7-degree view
 OVERHEAD_GRID = ((0.05, 0.15, 0.25, 0.35, 0.45), (0.02, 0.10, 0.18))
 
@@ -123,8 +121,9 @@ def camera_spec(cid: str, rig_file: Path, nominal_dir: Path, extra: dict[str, An
     )
 
 
-class Commissioner:
-    """Drives stages and table, triggers cameras and collects what they see (one rclpy node)."""
+class Commissioner(Observer):
+    """Drives stages and table, triggers cameras and collects what they see (the
+    orchestrator's :class:`~activesurv_bringup.observer.Observer`, used in a ``with`` block)."""
 
     def __init__(
         self,
@@ -134,172 +133,32 @@ class Commissioner:
         image_topics: dict[str, tuple[str, str]] | None = None,
         namespace: str = '',
     ) -> None:
-        # The Commissioner is the one ROS part of this module (offline commissioning, benches
-        # and studies import the rest without rclpy): its ROS imports are its own.
-        from rclpy.node import Node
-        from sensor_msgs.msg import CameraInfo, Image, JointState
-
-        from activesurv_common.ros import qos, topics
-        from activesurv_interfaces.msg import CaptureRequest, StageGoal
-
-        self.node = Node('commissioner', namespace=namespace or None)
-        topics_of = image_topics or {}
+        super().__init__('commissioner', namespace)
         self.setup = setup
+        self.cameras = list(cameras)
         self.settle_timeout = settle_timeout
-        self.states: dict[str, Any] = {}
-        # The newest frames of each camera, serialized: a free-running driver sends 30 a second
-        # and only one is wanted per look (deserialized then; stamps are read off the bytes).
-        self.images: dict[str, deque[tuple[float, bytes]]] = {}
-        self._Image = Image
-        self.infos: dict[str, Any] = {}
-        self.goal_pubs = {}
-        self.requests = 0
-        self._capture = self.node.create_publisher(
-            CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS
-        )
-        self._StageGoal, self._CaptureRequest = StageGoal, CaptureRequest
-        for stage in [TABLE_ID, *cameras]:
-            self.goal_pubs[stage] = self.node.create_publisher(
-                StageGoal, topics.goal(stage), qos.GOAL
-            )
-            self.node.create_subscription(
-                JointState, topics.joint_states(stage), self._keep(self.states, stage), qos.STATE
-            )
-        for cid in ['overhead', *cameras]:
-            self.images[cid] = deque(maxlen=FRAMES_KEPT)
-            image, info = topics_of.get(cid, (topics.image(cid), topics.camera_info(cid)))
-            # Best effort, as camera drivers publish (a reliable subscription would never match).
-            self.node.create_subscription(
-                Image, image, self._keep_frame(self.images[cid]), qos.SENSOR, raw=True
-            )
-            self.node.create_subscription(
-                CameraInfo, info, self._keep(self.infos, cid), qos.SENSOR
-            )
+        self._image_topics = image_topics or {}
 
-    @staticmethod
-    def _keep_frame(frames: deque[tuple[float, bytes]]) -> Callable[[bytes], None]:
-        def keep(data: bytes) -> None:
-            with contextlib.suppress(ValueError):
-                frames.append((cdr_header(data)[0], data))
-
-        return keep
-
-    @staticmethod
-    def _keep(store: dict[str, Any], key: str) -> Callable[[Any], None]:
-        def keep(msg: Any) -> None:
-            store[key] = msg
-
-        return keep
-
-    def now(self) -> float:
-        return float(self.node.get_clock().now().nanoseconds) * 1e-9
+    def on_start(self) -> None:
+        self.watch_stages([TABLE_ID, *self.cameras])
+        for cid in ['overhead', *self.cameras]:
+            image, info = self._image_topics.get(cid, (topics.image(cid), topics.camera_info(cid)))
+            self.watch_camera(cid, image, info)
 
     def hold(
         self, runner: Launcher, specs: Sequence[NodeSpec], startup_timeout: float
     ) -> GraphSession:
         """The graph this commissioner drives: up once every stage's joint states are heard;
         Ctrl-C unwinds it at once (nothing to finish), the nodes stopped all the same."""
-        stages = list(self.goal_pubs)
         return GraphSession(
             runner,
             specs,
-            lambda: {f'{s} (no joint states)' for s in stages if s not in self.states},
-            self.spin_for,
+            self.missing_stages,
+            self.spin,
             startup_timeout,
             settle=0.0,
             trap_signals=False,
         )
-
-    def spin_for(self, seconds: float) -> None:
-        """Handle what comes for ``seconds``."""
-        self.spin_until(lambda: False, seconds)
-
-    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
-        import rclpy  # the Commissioner's own (see __init__)
-
-        deadline = time.monotonic() + timeout
-        while not done():
-            if time.monotonic() > deadline:
-                return False
-            rclpy.spin_once(self.node, timeout_sec=0.02)
-        return True
-
-    def _at(self, stage: str, names: Sequence[str], q: Array, tol: float) -> bool:
-        msg = self.states.get(stage)
-        if msg is None:
-            return False
-        table = dict(zip(msg.name, msg.position, strict=False))
-        speed = dict(zip(msg.name, msg.velocity, strict=False))
-        return all(
-            n in table and abs(table[n] - v) <= tol and abs(speed.get(n, 0.0)) < 1e-9
-            for n, v in zip(names, q, strict=True)
-        )
-
-    def move(
-        self,
-        stage: str,
-        names: Sequence[str],
-        q: Array,
-        tol: float = 1e-5,
-        velocities: Sequence[float] | None = None,
-    ) -> None:
-        """Send a goal and wait until the stage reports it there (within ``tol``, m or rad: a
-        controller rounds to its steps), at rest. Captures use the positions reported then.
-
-        Raises:
-            NodeDiedError: if it does not get there in ``settle_timeout``.
-        """
-        if self._at(stage, names, q, tol):
-            return
-        msg = self._StageGoal()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.joint_names = list(names)
-        msg.positions = [float(v) for v in q]
-        msg.max_velocities = [float(v) for v in velocities or [0.0] * len(names)]
-        self.goal_pubs[stage].publish(msg)
-        if not self.spin_until(lambda: self._at(stage, names, q, tol), self.settle_timeout):
-            raise NodeDiedError(
-                f'{stage} did not reach {np.round(q, 5).tolist()} in {self.settle_timeout:.0f} s'
-            )
-
-    def capture(self, camera_id: str, stages: Sequence[str]) -> NDArray[np.uint8]:
-        """Trigger ``camera_id`` (and latch the stages) a moment from now; its frame.
-
-        Raises:
-            NodeDiedError: if no frame comes.
-        """
-        # the Commissioner's own ROS imports (see __init__)
-        from rclpy.serialization import deserialize_message
-
-        from activesurv_common.ros.conversions import image_to_gray, sec_to_time
-
-        t = self.now() + 0.15
-        msg = self._CaptureRequest()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.demand_index = self.requests
-        self.requests += 1
-        msg.demand_instant = sec_to_time(t)
-        msg.camera_ids = [camera_id, *stages]
-        self.images[camera_id].clear()
-        self._capture.publish(msg)
-
-        def arrived() -> bool:
-            return any(s >= t - 1e-6 for s, _ in self.images[camera_id])
-
-        if not self.spin_until(arrived, 5.0):
-            raise NodeDiedError(f'{camera_id} sent no frame for a capture request in 5 s')
-        data = next(d for s, d in self.images[camera_id] if s >= t - 1e-6)
-        frame = deserialize_message(data, self._Image)
-        return np.asarray(image_to_gray(frame), dtype=np.uint8)
-
-    def camera_model(self, camera_id: str, fallback: CameraModel) -> CameraModel:
-        """What the camera's driver says of its optics (camera_info), else ``fallback``."""
-        from activesurv_common.ros.conversions import model_from_camera_info  # (see __init__)
-
-        self.spin_until(lambda: camera_id in self.infos, 2.0)
-        if camera_id not in self.infos:
-            return fallback
-        return model_from_camera_info(self.infos[camera_id], camera_id)
 
     def look(self, camera_id: str, fixture: BoardFixture) -> Look:
         names = self.setup.sensor(camera_id).joint_names
@@ -609,8 +468,6 @@ def run_commission(
     Raises:
         ConfigError: for unknown cameras; NodeDiedError: if the graph does not answer.
     """
-    import rclpy  # only commissioning itself needs the ROS client library (offline: not)
-
     layout = None if hardware is None else layout_file(hardware.geometry.layout)
     setup = load_setup(layout, motion='fast')
     chosen = check_cameras(setup, cameras)
@@ -627,22 +484,16 @@ def run_commission(
         home = home or hardware.home
         specs, topics_of = hardware_commission_specs(hardware, chosen, work, home)
     launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))  # none: --live
-    owns = not rclpy.ok()
-    if owns:
-        rclpy.init()
     ns = hardware.namespace if hardware is not None else ''
-    com = Commissioner(setup, chosen, image_topics=topics_of, namespace=ns)
     started = time.monotonic()
-    try:
-        with com.hold(launcher, specs, startup_timeout):
-            return _commission(
-                com, setup, chosen, rig, hardware, nominal_cal, progress, out, stations, layout,
-                started,
-            )  # fmt: skip
-    finally:
-        com.close()
-        if owns:
-            rclpy.try_shutdown()
+    with (
+        Commissioner(setup, chosen, image_topics=topics_of, namespace=ns) as com,
+        com.hold(launcher, specs, startup_timeout),
+    ):
+        return _commission(
+            com, setup, chosen, rig, hardware, nominal_cal, progress, out, stations, layout,
+            started,
+        )  # fmt: skip
 
 
 def _commission(

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Image, JointState
 
@@ -59,7 +58,7 @@ class _Recorder:
         node.create_subscription(
             JointState, topics.joint_states(TABLE_ID), self._on_table, qos.STATE
         )
-        for cid in com.images:
+        for cid in com.frames:
             image, _ = image_topics.get(cid, (topics.image(cid), topics.camera_info(cid)))
             node.create_subscription(Image, image, self._on_frame(cid), qos.SENSOR, raw=True)
 
@@ -110,7 +109,7 @@ def measure_camera(
             for target in (hi, lo):
                 com.move(TABLE_ID, [TABLE_JOINTS[0]], np.array([target]), 2e-5, [v])
     finally:
-        com.spin_until(lambda: False, 0.3)  # the last frames of the pass
+        com.spin(0.3)  # the last frames of the pass
         rec.on = ''
     stamps, uv = _board_positions(rec.frames, squares)
     progress(
@@ -180,31 +179,25 @@ def run_measure_delay(
     work.mkdir(parents=True, exist_ok=True)
     specs, topics_of = hardware_commission_specs(hw, dynamic, work, home)
     launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
-    owns = not rclpy.ok()
-    if owns:
-        rclpy.init()
-    com = Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace)
-    rec = _Recorder(com, topics_of)
     fits: dict[str, DelayFit] = {}
-    try:
-        with com.hold(launcher, specs, startup_timeout):  # Ctrl-C: the bridges stop their axes
-            for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
-                started = time.monotonic()
-                if cid != 'overhead':
-                    names = list(setup.sensor(cid).joint_names)
-                    com.move(cid, names, joints[cid], tol=2e-4)
-                squares = fixture.top_squares if cid == 'overhead' else fixture.squares
-                fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
-                fits[cid] = fit
-                progress(
-                    f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter '
-                    f'{1e3 * fit.jitter:.1f} ms from {fit.samples} frames (fit '
-                    f'{fit.rms_px:.2f} px rms, {time.monotonic() - started:.0f} s)'
-                )
-        path = write_delays(cal_dir, fits)
-        progress(f'written: {path} (hardware runs with this calibration use it)')
-        return fits
-    finally:
-        com.close()
-        if owns:
-            rclpy.try_shutdown()
+    with (
+        Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace) as com,
+        com.hold(launcher, specs, startup_timeout),  # Ctrl-C: the bridges stop their axes
+    ):
+        rec = _Recorder(com, topics_of)
+        for cid in [*dynamic, *(['overhead'] if 'overhead' in chosen or not cameras else [])]:
+            started = time.monotonic()
+            if cid != 'overhead':
+                names = list(setup.sensor(cid).joint_names)
+                com.move(cid, names, joints[cid], tol=2e-4)
+            squares = fixture.top_squares if cid == 'overhead' else fixture.squares
+            fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
+            fits[cid] = fit
+            progress(
+                f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter '
+                f'{1e3 * fit.jitter:.1f} ms from {fit.samples} frames (fit '
+                f'{fit.rms_px:.2f} px rms, {time.monotonic() - started:.0f} s)'
+            )
+    path = write_delays(cal_dir, fits)
+    progress(f'written: {path} (hardware runs with this calibration use it)')
+    return fits

@@ -16,9 +16,8 @@ from pathlib import Path
 
 import yaml
 
-from activesurv_bringup.errors import ConfigError
+from activesurv_bringup.errors import ConfigError, HardwareCheckError
 from activesurv_bringup.files import config_path
-from activesurv_bringup.rig.commission import TABLE_RANGE
 from activesurv_bringup.rig.rigs import (
     CALIBRATIONS,
     RigChoice,
@@ -39,6 +38,7 @@ from activesurv_hardware.hardware_file import (
     template_text,
 )
 from activesurv_hardware.schema import hardware_problems, json_schema, layout_problems
+from activesurv_sim.xytable import TABLE_RANGE
 from activesurv_stages.config import motion_class
 
 
@@ -108,17 +108,6 @@ def hardware_choice(hw: Hardware, calibration: str | None) -> RigChoice:
         )
     label = calibration if calibration in CALIBRATIONS else str(cal_dir.resolve())
     return RigChoice(designed, f'hardware {hw.path}', cal, str(label), hardware_layout(hw))
-
-
-class HardwareCheckError(ConfigError):
-    """A hardware file with mistakes: :attr:`problems` holds one line per mistake."""
-
-    def __init__(self, path: Path | str, problems: list[str]) -> None:
-        n = len(problems)
-        super().__init__(
-            f'hardware file {path}: {n} mistake{"s" if n > 1 else ""}:\n  ' + '\n  '.join(problems)
-        )
-        self.problems = problems
 
 
 def check_hardware(path: Path | str, ports: bool = True, layout: bool = True) -> list[str]:
@@ -222,47 +211,6 @@ def confirm_motion(
     answer = ask('Move them? Stop at any time with Ctrl-C or activesurv stop. [y/N] ')
     if answer.strip().lower() not in ('y', 'yes'):
         raise ConfigError('nothing moved: not confirmed')
-
-
-def add_arguments(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``activesurv hardware {template,check,schema}``."""
-    t = sub.add_parser('template', help="write a commented hardware file (the paper's rig)")
-    t.add_argument('--out', type=Path, required=True, help='file to write (must not exist)')
-    t.add_argument('--name', default='paper-lab', help='the rig name in the file')
-    t.add_argument('--namespace', default='', help="ROS namespace of the rig's topics")
-    c = sub.add_parser(
-        'check',
-        help='read a hardware file and say what it describes, or every mistake in it (exit 2)',
-    )
-    c.add_argument('file', type=Path, help='the hardware file')
-    c.add_argument(
-        '--offline',
-        action='store_true',
-        help="check the file only, not that its controllers' ports exist and are usable",
-    )
-    md = sub.add_parser(
-        'measure-delay',
-        help="measure each camera's exposure delay and stamp jitter by sweeping the board on "
-        'the table in front of it; writes CALDIR/delays.yaml, which hardware runs use',
-    )
-    md.add_argument('--hardware', type=Path, required=True, help="the rig's hardware file")
-    md.add_argument(
-        '--calibration',
-        type=Path,
-        required=True,
-        help='the commissioned calibration directory (plans the sweeps; delays.yaml goes there)',
-    )
-    md.add_argument(
-        '--cameras', default=None, help='comma-separated cameras, overhead included (default: all)'
-    )
-    md.add_argument(
-        '--home', action='store_true', help='home unreferenced axes when the bridges connect'
-    )
-    md.add_argument('--yes', action='store_true', help='move without asking')
-    sc = sub.add_parser(
-        'schema', help="write the hardware file's JSON Schema (for an editor's YAML server)"
-    )
-    sc.add_argument('--out', type=Path, required=True, help='file to write (must not exist)')
 
 
 def run(args: argparse.Namespace) -> list[str]:

@@ -40,7 +40,7 @@ import yaml
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.files import new_output_dir
-from activesurv_bringup.rig.commission import TABLE_RANGE, camera_spec, check_cameras
+from activesurv_bringup.rig.commission import camera_spec, check_cameras
 from activesurv_bringup.rig.hardware import paper_rig
 from activesurv_bringup.rig.rigs import nominal
 from activesurv_common.lifetime import STOP_SIGNALS
@@ -49,6 +49,7 @@ from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_sim.conversions import DRIVER_UP, TABLE_ID, TABLE_JOINTS
+from activesurv_sim.xytable import TABLE_RANGE
 from activesurv_stages.config import motion_class
 from activesurv_stages.emulators import (
     EmulatorBase,

@@ -141,18 +141,6 @@ def calibration_dir(cache: Path, rig: Rig) -> Path:
 # -- activesurv rig ---------------------------------------------------------------------------
 
 
-def add_arguments(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """``activesurv rig {nominal,perturb}``."""
-    nom = sub.add_parser('nominal', help="write the paper's nominal rig")
-    nom.add_argument('--out', type=Path, required=True, help='rig YAML to write (must not exist)')
-    per = sub.add_parser('perturb', help='draw a realistic rig near a given one')
-    per.add_argument(
-        '--in', dest='source', type=Path, required=True, help='rig YAML to start from'
-    )
-    per.add_argument('--seed', type=int, required=True, help='seed of the perturbation')
-    per.add_argument('--out', type=Path, required=True, help='rig YAML to write (must not exist)')
-
-
 def run(args: argparse.Namespace) -> Path:
     """Write the rig the command line asks for; returns its path.
 

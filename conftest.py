@@ -44,6 +44,27 @@ def pytest_configure(config: pytest.Config) -> None:
     _owned_home.append(ros_home)
 
 
+ROOT = Path(__file__).resolve().parent
+# The tiers (docs/development.md): a package's own tests (src/*/test) are its core, unmarked, or
+# in-process nodes (``node``); test/ holds what spans packages, each test with its tier.
+TIERS = ('graph', 'node', 'cli', 'cross', 'meta')
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every test shows its tier: refused at collection otherwise."""
+    wrong = []
+    for item in items:
+        path = Path(str(item.path)).resolve()
+        marks = {m.name for m in item.iter_markers()}
+        if path.is_relative_to(ROOT / 'test'):
+            if not marks & set(TIERS):
+                wrong.append(f'{item.nodeid}: no tier marker (one of {", ".join(TIERS)})')
+        elif path.is_relative_to(ROOT / 'src') and marks & {'graph', 'cli', 'cross', 'meta'}:
+            wrong.append(f'{item.nodeid}: a package test is its core or node tier, not {marks}')
+    if wrong:
+        raise pytest.UsageError('tests without their tier:\n  ' + '\n  '.join(wrong))
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """Remove this session's ROS_HOME when every test passed; keep its logs for a failure."""
     if not _owned_home:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.cli  # each node script alone, as a process
+
 CASES = [
     ('activesurv_imaging.imager_node', 'marker_radius:=-1.0', 'marker_radius'),
     ('activesurv_imaging.imager_node', 'marker_radius:=abc', 'marker_radius'),

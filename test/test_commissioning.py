@@ -19,6 +19,8 @@ from activesurv_imaging.errors import CalibrationError
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.rig import perturb_rig
 
+pytestmark = pytest.mark.cross  # cores of several packages, no ROS
+
 
 @pytest.mark.parametrize(('seed', 'camera_id'), [(5, 'cam3'), (8, 'cam4')])
 def test_a_perturbed_camera_is_commissioned_from_nominal_values(seed: int, camera_id: str) -> None:

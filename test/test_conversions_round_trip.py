@@ -19,6 +19,8 @@ from activesurv_common.ros.conversions import (
     vector3,
 )
 
+pytestmark = pytest.mark.cross  # cores of several packages, no ROS
+
 COV6 = np.diag([1e-8, 2e-8, 3e-8, 1e-6, 2e-6, 3e-6])
 
 

@@ -6,6 +6,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.meta
+
 REPO = Path(__file__).resolve().parents[1]
 README = (REPO / 'README.md').read_text()
 

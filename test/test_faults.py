@@ -32,6 +32,7 @@ def _used(doc: dict, cam: str) -> list[dict]:  # type: ignore[type-arg]
     return [d for d in doc['demands'] if cam in d['assigned'] and d['status'] != 'not_captured']
 
 
+@pytest.mark.cross
 @pytest.mark.parametrize('fault', ['cam1:bias:0.003', 'cam1:noise:0.003', 'cam1:flip'])
 def test_a_faulty_camera_is_discarded_and_reported(fault: str) -> None:
     doc = _run(fault)
@@ -45,6 +46,7 @@ def test_a_faulty_camera_is_discarded_and_reported(fault: str) -> None:
         assert 'cam1' not in d['cameras']
 
 
+@pytest.mark.cross
 def test_a_frozen_camera_is_caught() -> None:
     doc = _run('cam4:frozen')
     used = [d for d in _used(doc, 'cam4') if d['index'] > 0]  # its first frame is still true
@@ -53,12 +55,14 @@ def test_a_frozen_camera_is_caught() -> None:
     assert all(d['position_error'] is None or d['position_error'] < 0.5e-3 for d in doc['demands'])
 
 
+@pytest.mark.cross
 def test_a_dead_camera_is_never_assigned() -> None:
     doc = _run('cam1:dead')
     assert all('cam1' not in d['assigned'] for d in doc['demands'])
     assert sum(d['estimated_position'] is not None for d in doc['demands']) == 10
 
 
+@pytest.mark.cross
 def test_fault_syntax_errors_are_clear() -> None:
     with pytest.raises(ConfigError, match='unknown kind'):
         parse_fault('cam1:melt:1')

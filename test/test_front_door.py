@@ -13,6 +13,8 @@ import pytest
 import activesurv_bringup
 from activesurv_bringup.cli import _build_parser
 
+pytestmark = pytest.mark.cli
+
 BIN = Path(sys.executable).parent
 
 
@@ -33,6 +35,19 @@ def test_version() -> None:
     r = _cli('--version')
     assert r.returncode == 0
     assert r.stdout.strip() == f'activesurv {activesurv_bringup.__version__}'
+
+
+def test_help_loads_no_heavy_library() -> None:
+    """``activesurv --help`` builds every subcommand's parser without the ROS client library,
+    numpy, pydantic, OpenCV or matplotlib (its time is in make bench, not here)."""
+    code = (
+        'import sys, activesurv_bringup.cli as c; c._build_parser(); '
+        "print(sorted(m for m in ('rclpy', 'numpy', 'pydantic', 'cv2', 'matplotlib', 'scipy') "
+        'if m in sys.modules))'
+    )
+    r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == '[]'
 
 
 @pytest.mark.parametrize(

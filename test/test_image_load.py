@@ -9,25 +9,9 @@ from typing import Any
 
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 
 
-def test_cdr_header_reads_stamp_and_frame_id() -> None:
-    from sensor_msgs.msg import Image
-
-    from activesurv_recording.bagio import cdr_header
-
-    msg = Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(18))
-    msg.header.stamp.sec = 1795236220
-    msg.header.stamp.nanosec = 250_000_000
-    msg.header.frame_id = 'cam3:41'
-    assert cdr_header(serialize_message(msg)) == (pytest.approx(1795236220.25), 'cam3:41')
-    with pytest.raises(ValueError, match='CDR'):
-        cdr_header(b'\x00\x01\x00\x00' + bytes(4))
-    with pytest.raises(ValueError, match='frame_id'):
-        cdr_header(b'\x00\x01\x00\x00' + bytes(8) + b'\xff\xff\x00\x00' + bytes(4))
-
-
+@pytest.mark.node
 @pytest.mark.parametrize('raw', [True, False])
 def test_streams_are_counted(
     raw: bool, rclpy_context: Any, spin_until: Callable[..., bool]
@@ -61,6 +45,7 @@ def test_streams_are_counted(
         assert seqs == sorted(seqs)  # numbered in order, per stream
 
 
+@pytest.mark.node
 def test_bad_role_is_refused(rclpy_context: Any) -> None:
     from rclpy.exceptions import InvalidParameterValueException
 
@@ -70,6 +55,7 @@ def test_bad_role_is_refused(rclpy_context: Any) -> None:
         ImageLoadNode(parameter_overrides=[Parameter('role', value='sink')])
 
 
+@pytest.mark.cross
 def test_shipped_dds_profile_is_found_and_bad_names_are_refused() -> None:
     import xml.etree.ElementTree as ET
 

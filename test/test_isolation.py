@@ -7,7 +7,11 @@ import os
 import tempfile
 from pathlib import Path
 
+import pytest
+
 from activesurv_launch.domains import DOMAIN_IDS
+
+pytestmark = pytest.mark.meta
 
 
 def test_session_has_its_own_ros_environment() -> None:

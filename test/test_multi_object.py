@@ -4,6 +4,7 @@ view, the overhead locator sees every top marker, the stream puts objects side b
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from activesurv_common.camera_model import dynamic_camera, overhead_camera
 from activesurv_common.sensor_model import SensorModel
@@ -12,6 +13,8 @@ from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fixes
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 from activesurv_sim.stream import ObjectStream
+
+pytestmark = pytest.mark.cross  # cores of several packages, no ROS
 
 NORMAL = np.array([0.0, -1.0, 0.0])
 MINE = np.array([0.25, 0.10, 0.05])

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -15,10 +16,12 @@ sys.path.insert(0, str(ROOT / 'scripts'))
 from node_configs import NODES, main  # noqa: E402
 
 
+@pytest.mark.meta
 def test_node_configs_are_current() -> None:
     assert main(['--check']) == 0, 'run .venv/bin/python scripts/node_configs.py'
 
 
+@pytest.mark.meta
 def test_each_config_holds_the_declared_defaults() -> None:
     import importlib
 
@@ -30,6 +33,7 @@ def test_each_config_holds_the_declared_defaults() -> None:
         assert values == declared, node
 
 
+@pytest.mark.cli
 def test_a_node_starts_with_its_config_file(tmp_path: Path) -> None:
     # The fusion node has no required parameter: with its shipped file it must come up and
     # stop cleanly on SIGINT.

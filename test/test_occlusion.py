@@ -35,6 +35,7 @@ def _frame(obstacles: tuple[Box | Cylinder, ...]) -> np.ndarray:
     return Renderer(cam).render(look_at(EYE, MARKER), scene, SensorNoise(0.0, 0.0, 0.0))
 
 
+@pytest.mark.cross
 @pytest.mark.parametrize('obstacle', [WALL, POST], ids=['box', 'cylinder'])
 def test_an_obstacle_is_drawn_over_the_marker_behind_it(obstacle: Box | Cylinder) -> None:
     clear, hidden = _frame(()), _frame((obstacle,))
@@ -47,6 +48,7 @@ def test_an_obstacle_is_drawn_over_the_marker_behind_it(obstacle: Box | Cylinder
     assert not sight_blocked(MARKER + [0, 0.3, 0], MARKER, [obstacle], 0.0125, NORMAL)[0]
 
 
+@pytest.mark.cross
 def test_the_imager_says_occluded_when_an_obstacle_hides_the_marker() -> None:
     cam = dynamic_camera('cam1')
     for obstacles, occluded in [((), False), ((WALL,), True)]:
@@ -59,6 +61,7 @@ def test_the_imager_says_occluded_when_an_obstacle_hides_the_marker() -> None:
         assert obs.reason.startswith('occluded') is occluded, obs.reason
 
 
+@pytest.mark.cli
 def test_no_assigned_camera_is_occluded_and_results_say_so(tmp_path: Path) -> None:
     """Lockstep on the nominal rig with a post in front of cam3 and cam4 for the second half
     of the path: every demand record has ``object`` and ``occluded`` (empty: the dispatcher

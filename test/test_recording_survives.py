@@ -97,6 +97,7 @@ def test_sigkill_loses_at_most_one_flush_period(tmp_path: Path, rclpy_context: A
     assert '/activesurv/run_info' in {m.topic for m in read_bag(bag)}
 
 
+@pytest.mark.cli
 def test_reindex_errors_are_clear(tmp_path: Path) -> None:
     with pytest.raises(BagError, match=r'no \.mcap'):
         reindex(tmp_path)

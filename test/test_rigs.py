@@ -23,6 +23,7 @@ ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SIM_MODULES = ('activesurv_sim.sim_camera_node', 'activesurv_sim.xy_table_node')
 
 
+@pytest.mark.cli
 def test_rig_commands_write_nominal_and_perturbed_rigs(tmp_path: Path) -> None:
     nom, per = tmp_path / 'nominal.yaml', tmp_path / 'r7.yaml'
     subprocess.run([ACTIVESURV, 'rig', 'nominal', '--out', str(nom)], check=True)
@@ -46,6 +47,7 @@ def test_rig_commands_write_nominal_and_perturbed_rigs(tmp_path: Path) -> None:
     assert 'cameras' in out.stderr
 
 
+@pytest.mark.cross
 def test_only_the_simulator_reads_the_rig(tmp_path: Path) -> None:
     exp = load_experiment('A', 'fast', 3, rig=choose(None, 'nominal', 3))
     specs = graph_specs(exp, tmp_path / 'bag')
@@ -61,6 +63,7 @@ def test_only_the_simulator_reads_the_rig(tmp_path: Path) -> None:
     assert all(s.parameters['camera_info_file'].startswith(str(tmp_path)) for s in cams)
 
 
+@pytest.mark.cross
 def test_a_calibration_directory_is_used_as_given(tmp_path: Path) -> None:
     choice = choose(None, 'truth', 2)
     choice.calibration.save(tmp_path / 'cal')
@@ -72,6 +75,7 @@ def test_a_calibration_directory_is_used_as_given(tmp_path: Path) -> None:
         choose(None, str(tmp_path / 'missing'), 2)
 
 
+@pytest.mark.cross
 def test_truth_nominal_and_calibrated_runs_on_a_perturbed_rig(tmp_path: Path) -> None:
     docs = {}
     for cal in ('truth', 'nominal'):

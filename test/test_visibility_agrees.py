@@ -12,6 +12,8 @@ from activesurv_dispatch.visibility import fused_visibility
 from activesurv_fusion.collector import Answer, DemandBatch, Outcome, resolve
 from activesurv_fusion.pose_fusion import PoseReading
 
+pytestmark = pytest.mark.cross  # cores of several packages, no ROS
+
 
 @pytest.mark.parametrize('k', [1, 2, 3, 4])
 def test_dispatch_and_fusion_visibility_agree(k: int) -> None:

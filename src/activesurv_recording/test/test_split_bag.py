@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from activesurv_bringup.errors import BagError
 from activesurv_recording.bagio import SplitBagWriter, read_bag
+from activesurv_recording.errors import BagError
 
 
 def _string(w: SplitBagWriter, topic: str, t: float, text: str) -> None:

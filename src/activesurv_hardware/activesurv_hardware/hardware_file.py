@@ -41,6 +41,7 @@ from typing import Any
 
 import yaml
 
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.schema import (
     CameraSection,
@@ -82,21 +83,22 @@ class CameraEntry:
 
 
 @dataclass(frozen=True)
-class ObjectGeometry:
-    top_height: float
-    side_offset: tuple[float, float, float]
-    side_normal: tuple[float, float, float]
-
-
-@dataclass(frozen=True)
 class Geometry:
     table_x: tuple[float, float]
     table_y: tuple[float, float]
-    marker_radius: float
-    top_marker_radius: float
-    object: ObjectGeometry
+    object: ObjectGeometry  # the markers, their radii included
     layout: str  # 'paper' or a set-up YAML path (resolved)
     board: BoardFixture
+
+    @property
+    def marker_radius(self) -> float:
+        """The side marker's radius (m)."""
+        return self.object.side_radius
+
+    @property
+    def top_marker_radius(self) -> float:
+        """The top marker's radius (m)."""
+        return self.object.top_radius
 
 
 @dataclass(frozen=True)
@@ -199,9 +201,13 @@ def load_hardware(path: Path | str) -> Hardware:
     geometry = Geometry(
         g.table.x,
         g.table.y,
-        g.marker_radius,
-        g.top_marker_radius,
-        ObjectGeometry(o.top_height, o.side_offset, o.side_normal),
+        ObjectGeometry(
+            o.top_height,
+            o.side_offset,
+            o.side_normal,
+            side_radius=g.marker_radius,
+            top_radius=g.top_marker_radius,
+        ),
         layout,
         BoardFixture(
             b.squares, b.square_size, b.offset, b.top_squares, b.top_square_size, b.top_height
@@ -384,9 +390,7 @@ class TemplateRig:
     namespace: str
     table_x: tuple[float, float]
     table_y: tuple[float, float]
-    marker_radius: float
-    top_marker_radius: float
-    object: ObjectGeometry
+    object: ObjectGeometry  # the markers, their radii included
     cameras: Sequence[tuple[str, Sequence[tuple[str, str, float, float]]]]  # id, joints
     linear: tuple[float, float]  # max velocity, acceleration
     rotary: tuple[float, float]
@@ -402,8 +406,8 @@ def template_text(rig: TemplateRig) -> str:
         x1=rig.table_x[1],
         y0=rig.table_y[0],
         y1=rig.table_y[1],
-        marker=rig.marker_radius,
-        top=rig.top_marker_radius,
+        marker=o.side_radius,
+        top=o.top_radius,
         top_height=o.top_height,
         side_offset=list(o.side_offset),
         side_normal=list(o.side_normal),

@@ -21,9 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_hardware.errors import HardwareError
 from activesurv_sim.stream import ObjectStream
-from activesurv_sim.xytable import PARKED, ObjectModel, ObjectState, TimedPath
+from activesurv_sim.xytable import PARKED, ObjectState, TimedPath, object_state
 
 Array = NDArray[np.float64]
 
@@ -90,7 +91,7 @@ class PathRunner:
 class TruthFromController:
     """The object's state from the carriage positions the table controller reports."""
 
-    def __init__(self, model: ObjectModel) -> None:
+    def __init__(self, model: ObjectGeometry) -> None:
         self.model = model
         self._last: tuple[float, Array] | None = None
 
@@ -100,13 +101,13 @@ class TruthFromController:
         it."""
         if not present:
             self._last = None
-            return self.model.at(PARKED, np.zeros(2), False, present=False)
+            return object_state(self.model, PARKED, np.zeros(2), False, present=False)
         p = np.asarray(xy, dtype=np.float64)[:2]
         v = np.zeros(2)
         if self._last is not None and t > self._last[0]:
             v = (p - self._last[1]) / (t - self._last[0])
         self._last = (t, p)
-        return self.model.at(p, v, bool(np.linalg.norm(v) > 1e-4))
+        return object_state(self.model, p, v, bool(np.linalg.norm(v) > 1e-4))
 
 
 class StreamRunner:

@@ -19,6 +19,8 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
+from activesurv_common.errors import GeometryError
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import joint_vector, sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
@@ -29,7 +31,7 @@ from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_interfaces.msg import StageGoal
 from activesurv_sim.conversions import object_state_msg
 from activesurv_sim.stream import PATH_KINDS, ObjectStream
-from activesurv_sim.xytable import ObjectModel, named_path
+from activesurv_sim.xytable import named_path
 from activesurv_stages.errors import StageError
 
 TABLE = 'xy_table'
@@ -69,11 +71,14 @@ class TableRunnerNode(Node):
         self.joints = [str(j) for j in v['joints']]
         if len(self.joints) != 2:
             raise HardwareError(f'joints: the table has two (x, y), got {self.joints}')
-        model = ObjectModel(
-            float(v['top_height']),
-            tuple(float(x) for x in v['side_offset']),  # type: ignore[arg-type]
-            tuple(float(x) for x in v['side_normal']),  # type: ignore[arg-type]
-        )
+        try:
+            model = ObjectGeometry(
+                float(v['top_height']),
+                tuple(float(x) for x in v['side_offset']),  # type: ignore[arg-type]
+                tuple(float(x) for x in v['side_normal']),  # type: ignore[arg-type]
+            )
+        except GeometryError as exc:
+            raise HardwareError(f'object: {exc}') from exc
         self.truth = TruthFromController(model)
         self.frame_id = str(v['frame_id'])
         origin = float(v['time_origin'])

@@ -14,11 +14,12 @@ import pytest
 from rclpy.parameter import Parameter
 
 from activesurv_common.camera_model import dynamic_camera
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.ros import qos, topics
 from activesurv_hardware.camera_node import CameraNode
 from activesurv_hardware.path_runner import PathRunner, TruthFromController
 from activesurv_hardware.video_source import VideoSource, is_file, parse_device
-from activesurv_sim.xytable import ObjectModel, named_path
+from activesurv_sim.xytable import named_path
 
 pytestmark = pytest.mark.node  # in-process rclpy nodes
 
@@ -127,7 +128,7 @@ def test_the_path_is_streamed_in_short_timed_moves() -> None:
 
 
 def test_truth_is_the_reported_carriage_through_the_object_model() -> None:
-    model = ObjectModel(0.08, (0.0, -0.03, -0.03), (0.0, -1.0, 0.0))
+    model = ObjectGeometry(0.08, (0.0, -0.03, -0.03), (0.0, -1.0, 0.0))
     truth = TruthFromController(model)
     a = truth.state(1.0, np.array([0.2, 0.1]))
     b = truth.state(1.5, np.array([0.21, 0.1]))

@@ -12,8 +12,8 @@ from typing import Any
 import pytest
 import yaml
 
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_hardware.hardware_file import (
-    ObjectGeometry,
     TemplateRig,
     load_hardware,
     template_text,
@@ -39,8 +39,6 @@ def _template() -> dict[str, Any]:
         '',
         (0.0, 0.5),
         (0.0, 0.2),
-        0.0125,
-        0.0125,
         ObjectGeometry(0.06, (0.0, -0.03, -0.02), (0.0, -1.0, 0.0)),
         [
             ('cam1', [('cam1_x', 'linear', 0.0, 0.3), ('cam1_yaw', 'rotary', -1.0, 1.0)]),

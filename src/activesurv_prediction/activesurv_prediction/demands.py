@@ -21,6 +21,8 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.errors import GeometryError
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_prediction.base import Predictor
 from activesurv_prediction.errors import PredictionError
 from activesurv_prediction.tracker import Tracker, TrackState
@@ -63,35 +65,50 @@ class DemandSchedule:
 
 @dataclass(frozen=True)
 class TargetGeometry:
-    """Side marker relative to the top marker (object frame = world axes: no rotation).
+    """The object's geometry as the predictor uses it: the side marker relative to the top
+    marker (object frame = world axes: no rotation), and how well that is known.
 
     Attributes:
-        offset: side-marker centre minus top-marker centre (m).
-        normal: unit normal of the side marker in the world.
+        object: the object (:class:`~activesurv_common.object_geometry.ObjectGeometry`).
         z_std: std of the side marker's height (m): the geometry is known, not measured.
         normal_std: std of the normal components.
     """
 
-    offset: Array
-    normal: Array
+    object: ObjectGeometry
     z_std: float = 0.5e-3
     normal_std: float = 0.01
+
+    @property
+    def offset(self) -> Array:
+        """Side-marker centre minus top-marker centre (m)."""
+        return self.object.offset
+
+    @property
+    def normal(self) -> Array:
+        """Unit normal of the side marker in the world."""
+        return self.object.normal
 
     @staticmethod
     def create(
         offset: ArrayLike, normal: ArrayLike, z_std: float = 0.5e-3, normal_std: float = 0.01
     ) -> TargetGeometry:
+        """From a side marker's offset and normal (the rest of the object as the paper's).
+
+        Raises:
+            PredictionError: for anything but 3 finite numbers each, or a zero normal.
+        """
         o = np.asarray(offset, dtype=np.float64).reshape(-1)
         n = np.asarray(normal, dtype=np.float64).reshape(-1)
-        if (
-            o.shape != (3,)
-            or n.shape != (3,)
-            or not (np.all(np.isfinite(o)) and np.all(np.isfinite(n)))
-        ):
+        if o.shape != (3,) or n.shape != (3,):
             raise PredictionError('side marker offset and normal need 3 finite numbers each')
-        if np.linalg.norm(n) < 1e-9:
-            raise PredictionError('side marker normal has zero length')
-        return TargetGeometry(o, n / np.linalg.norm(n), z_std, normal_std)
+        try:
+            obj = ObjectGeometry(
+                side_offset=(float(o[0]), float(o[1]), float(o[2])),
+                side_normal=(float(n[0]), float(n[1]), float(n[2])),
+            )
+        except GeometryError as exc:
+            raise PredictionError(f'side marker: {exc}') from exc
+        return TargetGeometry(obj, z_std, normal_std)
 
 
 @dataclass(frozen=True)

@@ -13,11 +13,12 @@ from activesurv_common.camera_model import CameraModel, dynamic_camera, overhead
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.render import Scene, SensorNoise
 from activesurv_sim.rig import load_rig
-from activesurv_sim.sim_camera import ObjectGeometry, SimulatedCamera
+from activesurv_sim.sim_camera import SimulatedCamera
 from activesurv_sim.stream import ObjectStream
 from activesurv_sim.xytable import ObjectState, XYTable
 
@@ -92,9 +93,9 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
         model,
         mount,
         ObjectGeometry(
-            float(p['side_marker_radius']),
-            float(p['top_marker_radius']),
-            float(p['plate_half_size']),
+            side_radius=float(p['side_marker_radius']),
+            top_radius=float(p['top_marker_radius']),
+            plate_half_size=float(p['plate_half_size']),
         ),
         SensorNoise(
             float(p['blur_sigma']),

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,26 +26,11 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, unit
 from activesurv_common.mount import CameraMount
-from activesurv_common.occlusion import PLATE_HALF_SIZE, Box, Obstacle
+from activesurv_common.object_geometry import ObjectGeometry
+from activesurv_common.occlusion import Box, Obstacle
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.errors import RenderError
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
-
-
-@dataclass(frozen=True)
-class ObjectGeometry:
-    """The object's two markers as the cameras see them.
-
-    Attributes:
-        side_radius: radius of the side marker, the surveyed target (m).
-        top_radius: radius of the top marker, tracked by the overhead camera (m).
-        plate_half_size: half side of the black plates carrying the markers (m).
-    """
-
-    side_radius: float = 0.0125
-    top_radius: float = 0.0125
-    plate_half_size: float = PLATE_HALF_SIZE
-
 
 EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked
 OBSTACLE_LEVEL = 120.0  # grey fixtures: neither the black plates nor the white markers

@@ -24,16 +24,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from activesurv_common.errors import GeometryError
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_sim.rig import load_rig
 from activesurv_sim.xytable import (
     PARKED,
     TABLE_RANGE,
-    ObjectModel,
     ObjectState,
     TimedPath,
     XYTable,
     check_in_table,
     named_path,
+    object_state,
 )
 from activesurv_stages.errors import ConfigError
 
@@ -221,7 +223,7 @@ class ObjectStream:
         gap: float = 2.0,
         speed: float = 0.02,
         acceleration: float = 0.02,
-        model: ObjectModel | None = None,
+        model: ObjectGeometry | None = None,
         position_error: Callable[[float, float], Array] | None = None,
         at_once: int = 1,
         script: Sequence[Mapping[str, Any]] = (),
@@ -242,7 +244,7 @@ class ObjectStream:
         self.gap = gap
         self.speed = speed
         self.acceleration = acceleration
-        self.model = model or ObjectModel()
+        self.model = model or ObjectGeometry()
         n = np.asarray(self.model.side_normal, dtype=np.float64)
         self._normal = n / np.linalg.norm(n)
         self.passes: list[ObjectPass] = []
@@ -316,7 +318,7 @@ class ObjectStream:
             if self.position_error is not None:  # where the table really is
                 xy = xy + self.position_error(float(xy[0]), float(xy[1]))
         moving = p is not None and 0.0 < t - p.entered < p.path.duration
-        return self.model.at(xy, v, moving, p is not None)
+        return object_state(self.model, xy, v, moving, p is not None)
 
 
 def scripted_passes(
@@ -370,7 +372,12 @@ def table_from_parameters(p: Mapping[str, Any]) -> XYTable | ObjectStream:
     nrm = [float(v) for v in p['side_normal']]
     if len(off) != 3 or len(nrm) != 3:
         raise ConfigError('side_offset and side_normal need 3 numbers each')
-    model = ObjectModel(float(p['top_height']), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2]))
+    try:
+        model = ObjectGeometry(
+            float(p['top_height']), (off[0], off[1], off[2]), (nrm[0], nrm[1], nrm[2])
+        )
+    except GeometryError as exc:
+        raise ConfigError(f'object: {exc}') from exc
     speed, accel = float(p['speed']), float(p['acceleration'])
     error = None
     if p.get('rig_file'):

@@ -13,12 +13,13 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_stages.errors import ConfigError
 from activesurv_stages.kinematics import plan_move
 
@@ -164,42 +165,14 @@ def write_csv(path: Path | str, timed: TimedPath, step: float = 0.05) -> None:
             w.writerow([f'{t:.4f}', f'{x:.6f}', f'{y:.6f}'])
 
 
-@dataclass(frozen=True)
-class ObjectModel:
-    """Where the markers are relative to the carriage.
-
-    Attributes:
-        top_height: height of the top marker's plane (m).
-        side_offset: side-marker centre minus top-marker centre (m).
-        side_normal: unit normal of the side marker.
-    """
-
-    top_height: float = 0.08
-    side_offset: tuple[float, float, float] = (0.0, -0.03, -0.03)
-    side_normal: tuple[float, float, float] = (0.0, -1.0, 0.0)
-
-    def __post_init__(self) -> None:
-        n = np.asarray(self.side_normal, dtype=np.float64)
-        if not (
-            math.isfinite(self.top_height)
-            and np.all(np.isfinite(self.side_offset))
-            and np.all(np.isfinite(n))
-            and np.linalg.norm(n) > 1e-9
-        ):
-            raise ConfigError('object model values must be finite, with a non-zero normal')
-
-    def at(self, xy: Array, v: Array, moving: bool, present: bool = True) -> ObjectState:
-        """The object's state with its carriage at ``xy`` moving at ``v`` (m, m/s)."""
-        n = np.asarray(self.side_normal, dtype=np.float64)
-        top = np.array([xy[0], xy[1], self.top_height])
-        return ObjectState(
-            top,
-            top + np.asarray(self.side_offset),
-            n / np.linalg.norm(n),
-            np.array([v[0], v[1], 0.0]),
-            moving,
-            present,
-        )
+def object_state(
+    geometry: ObjectGeometry, xy: Array, v: Array, moving: bool, present: bool = True
+) -> ObjectState:
+    """The object's state with its carriage at ``xy`` moving at ``v`` (m, m/s)."""
+    top = np.array([xy[0], xy[1], geometry.top_height])
+    return ObjectState(
+        top, top + geometry.offset, geometry.normal, np.array([v[0], v[1], 0.0]), moving, present
+    )
 
 
 @dataclass(frozen=True)
@@ -226,7 +199,7 @@ class TableConfig:
     acceleration: float = 0.02
     start_time: float = 0.5
     enters_at_start: bool = False
-    model: ObjectModel = ObjectModel()
+    model: ObjectGeometry = field(default_factory=ObjectGeometry)
 
     def path(self) -> TimedPath:
         """The object's path.
@@ -287,7 +260,7 @@ class XYTable:
         self,
         path: TimedPath,
         start_time: float = 1.0,
-        model: ObjectModel | None = None,
+        model: ObjectGeometry | None = None,
         position_error: Callable[[float, float], Array] | None = None,
         enters_at_start: bool = False,
     ) -> None:
@@ -299,7 +272,7 @@ class XYTable:
         self.enters_at_start = enters_at_start
         self.path = path
         self.start_time = start_time
-        self.model = model or ObjectModel()
+        self.model = model or ObjectGeometry()
         n = np.asarray(self.model.side_normal, dtype=np.float64)
         self._normal = n / np.linalg.norm(n)
 
@@ -310,12 +283,12 @@ class XYTable:
     def state(self, t: float) -> ObjectState:
         tau = t - self.start_time
         if tau < 0.0 and self.enters_at_start:
-            return self.model.at(PARKED, np.zeros(2), False, present=False)
+            return object_state(self.model, PARKED, np.zeros(2), False, present=False)
         xy = self.path.position(tau)
         if self.position_error is not None:
             xy = xy + self.position_error(float(xy[0]), float(xy[1]))
         v = self.path.velocity(tau)
-        return self.model.at(xy, v, bool(0.0 <= tau <= self.path.duration))
+        return object_state(self.model, xy, v, bool(0.0 <= tau <= self.path.duration))
 
 
 def named_path(

@@ -122,12 +122,13 @@ def test_a_scripted_stream_has_exactly_its_objects_in_their_lanes() -> None:
 
 
 def test_a_table_config_says_the_same_as_its_node_parameters() -> None:
+    from activesurv_common.object_geometry import ObjectGeometry
     from activesurv_sim.stream import table_from_parameters
-    from activesurv_sim.xytable import ObjectModel, TableConfig, XYTable
+    from activesurv_sim.xytable import TableConfig, XYTable
 
     c = TableConfig(
         'parabola', (0.13, 0.05, 0.25, 0.09, 0.37, 0.05), start_time=0.5, enters_at_start=True,
-        model=ObjectModel(0.07, (0.0, -0.02, -0.03), (0.0, -1.0, 0.0)),
+        model=ObjectGeometry(0.07, (0.0, -0.02, -0.03), (0.0, -1.0, 0.0)),
     )  # fmt: skip
     direct = c.table()
     via = table_from_parameters(c.to_parameters())

@@ -26,6 +26,7 @@ from activesurv_bringup.rig.rigs import RigChoice
 from activesurv_common.camera_model import CameraModel, overhead_camera
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.mount import CameraMount
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import obstacles_to_list
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.errors import DispatchConfigError
@@ -38,7 +39,6 @@ from activesurv_imaging.capture import ImagerConfig
 from activesurv_prediction.session import PredictorConfig
 from activesurv_recording.run_record import ExperimentRun, RigFacts, RunRecord
 from activesurv_sim.xytable import (
-    ObjectModel,
     TableConfig,
     TimedPath,
     XYTable,
@@ -68,10 +68,15 @@ class Experiment:
     rig: RigChoice | None = None  # the simulated hardware; None: exactly the set-up (round 1)
 
     @property
-    def object_model(self) -> ObjectModel:
+    def object_model(self) -> ObjectGeometry:
         o = self.config['object']
-        return ObjectModel(
-            float(o['top_height']), tuple(o['side_offset']), tuple(o['side_normal'])
+        r = self.setup.marker_radius  # both markers: Table I's 25 mm discs
+        return ObjectGeometry(
+            float(o['top_height']),
+            tuple(o['side_offset']),
+            tuple(o['side_normal']),
+            side_radius=r,
+            top_radius=r,
         )
 
     @property

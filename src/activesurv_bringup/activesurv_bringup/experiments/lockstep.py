@@ -29,6 +29,7 @@ from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind
 from activesurv_common.mount import CameraMount
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import Obstacle, sight_blocked
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
@@ -42,7 +43,7 @@ from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.session import PredictionSession
 from activesurv_sim.render import Renderer, SensorNoise
-from activesurv_sim.sim_camera import ObjectGeometry, object_scene, obstacle_plates
+from activesurv_sim.sim_camera import object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
 
@@ -86,7 +87,7 @@ def run_lockstep(
     """
     rng = np.random.default_rng(exp.seed)
     noise = SensorNoise()
-    geometry = ObjectGeometry(exp.setup.marker_radius, exp.setup.marker_radius)
+    geometry = exp.object_model
     by_cam = {f.camera: f for f in faults}
     dead = {c for c, f in by_cam.items() if f.kind is FaultKind.DEAD}
 

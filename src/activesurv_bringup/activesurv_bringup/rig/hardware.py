@@ -25,11 +25,11 @@ from activesurv_bringup.rig.rigs import (
     nominal,
     resolve_calibration,
 )
+from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_dispatch.sensors import load_setup
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.hardware_file import (
     Hardware,
-    ObjectGeometry,
     TemplateRig,
     describe,
     load_hardware,
@@ -61,12 +61,12 @@ def paper_rig(name: str = 'paper-lab', namespace: str = '') -> TemplateRig:
         namespace,
         TABLE_RANGE[0],
         TABLE_RANGE[1],
-        setup.marker_radius,
-        setup.marker_radius,
         ObjectGeometry(
             float(obj['top_height']),
             tuple(float(v) for v in obj['side_offset']),  # type: ignore[arg-type]
             tuple(float(v) for v in obj['side_normal']),  # type: ignore[arg-type]
+            side_radius=setup.marker_radius,
+            top_radius=setup.marker_radius,
         ),
         cameras,
         (hw.linear_velocity, hw.linear_acceleration),

@@ -171,8 +171,8 @@ def hardware_document(
         'home': True,  # the emulated stages power up unreferenced, as real ones do
         'geometry': {
             'table': {'x': list(rig.table_x), 'y': list(rig.table_y)},
-            'marker_radius': rig.marker_radius,
-            'top_marker_radius': rig.top_marker_radius,
+            'marker_radius': o.side_radius,
+            'top_marker_radius': o.top_radius,
             'object': {
                 'top_height': o.top_height,
                 'side_offset': list(o.side_offset),

@@ -70,10 +70,11 @@ def test_dispatch_goal_to_stage_items_and_capture_to_fusion_request() -> None:
 
 
 def test_imaging_observation_to_fusion_answer() -> None:
+    from activesurv_common.statuses import ObservationStatus
     from activesurv_fusion.collector import Outcome
     from activesurv_fusion.conversions import observation_to_answer
     from activesurv_imaging.conversions import observation_to_msg
-    from activesurv_imaging.observation import Observation, ObservationStatus, failed
+    from activesurv_imaging.observation import Observation, failed
 
     obs = Observation(
         'cam3',

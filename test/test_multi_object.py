@@ -8,8 +8,8 @@ import pytest
 
 from activesurv_common.camera_model import dynamic_camera, overhead_camera
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.capture import CaptureCore, ImagerConfig
-from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fixes
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 from activesurv_sim.stream import ObjectStream

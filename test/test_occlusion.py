@@ -16,8 +16,8 @@ import yaml
 from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.occlusion import Box, Cylinder, sight_blocked
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.capture import CaptureCore, ImagerConfig
-from activesurv_imaging.observation import ObservationStatus
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 from activesurv_sim.sim_camera import OBSTACLE_LEVEL, obstacle_plates
 

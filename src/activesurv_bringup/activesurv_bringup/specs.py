@@ -1,9 +1,10 @@
-"""Node specs shared by every kind of run: a camera's mount parameters, a simulated stage, the
-live view, a real stage's bridge and a real camera's driver. Graph runs, hardware runs,
+"""Node specs shared by every kind of run: a camera's mount parameters, its imager, a simulated
+stage, the live view, a real stage's bridge and a real camera's driver. Graph runs, hardware runs,
 commissioning, replay and the lab all start these nodes."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from activesurv_common.trigger import SourceKind
@@ -22,6 +23,25 @@ def mount_parameters(sensor: Sensor) -> dict[str, Any]:
         'mount.offset': [float(v) for v in m.offset],
         'mount.linear_axis': [float(v) for v in axis],
     }
+
+
+def imager_spec(
+    sensor: Sensor,
+    told: Mapping[str, Any],
+    sim_time: bool,
+    extra: Mapping[str, Any] | None = None,
+    remappings: Mapping[str, str] | None = None,
+) -> NodeSpec:
+    """The imager of one camera, as every route starts it: what it is told (an
+    :class:`~activesurv_imaging.capture.ImagerConfig`'s parameters, or a recorded run's), its
+    camera's mount, its clock, and what the route adds (``extra``: reliable images, recorded
+    frames, a driver's trigger service, commissioned intrinsics)."""
+    return NodeSpec(
+        f'{sensor.camera_id}_imager',
+        'activesurv_imaging.imager_node',
+        parameters={'use_sim_time': sim_time, **told, **mount_parameters(sensor), **(extra or {})},
+        remappings=dict(remappings or {}),
+    )
 
 
 def stage_spec(

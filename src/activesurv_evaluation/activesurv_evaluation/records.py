@@ -3,17 +3,27 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from enum import Enum
+from typing import Any, TypeVar
 
 import numpy as np
 
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.occlusion import Obstacle, obstacles_from_list, sight_blocked
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import DemandStatus, ObservationStatus
 from activesurv_evaluation.results import DemandRecord, visibility_from_transforms
 from activesurv_recording.run_record import RunRecord
 
-STATUS = {0: 'ok', 1: 'no_observations', 2: 'no_consensus', 3: 'partial'}
+S = TypeVar('S', bound=Enum)
+
+
+def _status(kind: type[S], value: Any) -> S | None:
+    """A recorded status constant as its enum (None for a value the enum does not know)."""
+    try:
+        return kind(int(value))
+    except ValueError:
+        return None
 
 
 def run_obstacles(record: RunRecord) -> tuple[Obstacle, ...] | None:
@@ -101,10 +111,11 @@ def demand_record(
         rec.assigned = [str(c) for c in req.camera_ids]
     seen = []
     for o in observations:
+        status = _status(ObservationStatus, o.status)
         # Frame stamp minus demand instant (free-running cameras; 0 for triggered ones).
-        if o.status != 3:  # NO_IMAGE: no frame, no offset
+        if status is not ObservationStatus.NO_IMAGE:  # no frame, no offset
             rec.frame_offsets[str(o.camera_id)] = float(getattr(o, 'frame_offset', 0.0))
-        if o.status == 0:
+        if status is ObservationStatus.OK:
             p, q = o.camera_pose.position, o.camera_pose.orientation
             seen.append(
                 Transform.from_rt(matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z])
@@ -113,7 +124,10 @@ def demand_record(
     rec.occluded = None if obstacles is None else []
     if obstacles and rec.occluded is not None and np.all(np.isfinite(truth[:3])):
         for o in observations:
-            if str(o.camera_id) not in rec.assigned or o.status in (3, 4):
+            if (
+                str(o.camera_id) not in rec.assigned
+                or not ObservationStatus(int(o.status)).located
+            ):
                 continue  # no frame or no stage state: where it looked from is unknown
             p = o.camera_pose.position
             if sight_blocked([p.x, p.y, p.z], truth[:3], obstacles, radius, truth[3:])[0]:
@@ -127,13 +141,14 @@ def demand_record(
         )
         return rec
     e, t_ns = est
-    rec.status = STATUS.get(int(e.status), f'status_{e.status}')
+    outcome = _status(DemandStatus, e.status)
+    rec.status = outcome.label if outcome is not None else f'status_{e.status}'
     rec.reason = str(e.reason)
     rec.cameras = [str(c) for c in e.cameras_used]
     rec.faulty = [str(c) for c in e.cameras_faulty]
     rec.missing = [str(c) for c in e.cameras_missing]
     rec.latency = t_ns * 1e-9 - tj
-    if e.status in (0, 3) and np.all(np.isfinite(msg_vector(e.position))):
+    if outcome is not None and outcome.estimated and np.all(np.isfinite(msg_vector(e.position))):
         rec.estimated_position = msg_vector(e.position)
         rec.estimated_normal = msg_vector(e.normal)
     return rec

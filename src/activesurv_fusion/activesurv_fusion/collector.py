@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from activesurv_common.information import covariance_visibility
+from activesurv_common.statuses import DemandStatus
 from activesurv_fusion.errors import InvalidReadingError, NoConsensusError
 from activesurv_fusion.pose_fusion import FusedPose, PoseReading, fuse_poses
 
@@ -167,15 +168,6 @@ class DemandCollector:
     def flush(self) -> list[DemandBatch]:
         """Remove and return every open demand (on shutdown: answer them rather than drop them)."""
         return self.pop_ready(math.inf)
-
-
-class DemandStatus(Enum):
-    """Mirrors the status constants of ``activesurv_interfaces/TargetEstimate``."""
-
-    OK = 0
-    NO_OBSERVATIONS = 1
-    NO_CONSENSUS = 2
-    PARTIAL = 3
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from activesurv_fusion.collector import Answer, DemandResult, DemandStatus, camera_answer
+from activesurv_common.statuses import DemandStatus
+from activesurv_fusion.collector import Answer, DemandResult, camera_answer
 
 __all__ = [
     'observation_to_answer',

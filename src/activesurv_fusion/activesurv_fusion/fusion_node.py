@@ -32,7 +32,7 @@ from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
-from activesurv_fusion.collector import DemandBatch, DemandCollector, DemandStatus, resolve
+from activesurv_fusion.collector import DemandBatch, DemandCollector, resolve
 from activesurv_fusion.conversions import (
     observation_to_answer,
     request_fields,
@@ -164,7 +164,7 @@ class FusionNode(Node):
             if pose is not None:
                 self._pose_pub.publish(pose)
             log = self.get_logger()
-            if result.status in (DemandStatus.OK, DemandStatus.PARTIAL):
+            if result.status.estimated:
                 log.info(f'demand {result.index}: {result.status.name} {result.reason}'.strip())
             else:
                 log.warning(f'demand {result.index}: {result.status.name}: {result.reason}')

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from activesurv_common.statuses import DemandStatus
 from activesurv_fusion.collector import (
     Answer,
     DemandCollector,
-    DemandStatus,
     Outcome,
     resolve,
 )

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from activesurv_imaging.observation import Observation, ObservationStatus
+from activesurv_common.statuses import ObservationStatus
+from activesurv_imaging.observation import Observation
 
 Array = NDArray[np.float64]
 Projector = Callable[[Array], Array]  # camera-frame points (N, 3) -> pixels (N, 2)

@@ -41,13 +41,13 @@ from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.occlusion import Obstacle, load_obstacles, sight_blocked
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import ObservationStatus
 from activesurv_common.timeseries import FrameBuffer, TimeSeries
 from activesurv_common.trigger import Trigger
 from activesurv_imaging.errors import ImagingError, VisionErrors
 from activesurv_imaging.marker_pose import measure_marker
 from activesurv_imaging.observation import (
     Observation,
-    ObservationStatus,
     failed,
     observe_marker,
     perturb,

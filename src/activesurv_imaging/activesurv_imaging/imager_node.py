@@ -38,6 +38,7 @@ from activesurv_common.ros.conversions import (
 )
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.annotations import annotation_shapes
 from activesurv_imaging.capture import CaptureCore, core_from_parameters
 from activesurv_imaging.conversions import (
@@ -48,7 +49,6 @@ from activesurv_imaging.conversions import (
 )
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.imager_params import PARAMS
-from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.ros.software_trigger import SoftwareTrigger
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from enum import Enum
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,22 +15,12 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, bearing, unit
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.ellipse import Ellipse
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
 
 Array = NDArray[np.float64]
-
-
-class ObservationStatus(Enum):
-    """The status constants of ``activesurv_interfaces/MarkerObservation``."""
-
-    OK = 0
-    NOT_FOUND = 1
-    REJECTED = 2
-    NO_IMAGE = 3
-    NO_CAMERA_POSE = 4
-    POSE_FAILED = 5
 
 
 @dataclass(frozen=True)

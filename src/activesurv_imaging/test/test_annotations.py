@@ -9,10 +9,11 @@ import numpy as np
 
 from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.geometry import Transform
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.annotations import annotation_shapes, ellipse_points
 from activesurv_imaging.conversions import annotation_markers
 from activesurv_imaging.ellipse import Ellipse
-from activesurv_imaging.observation import Observation, ObservationStatus, failed
+from activesurv_imaging.observation import Observation, failed
 
 
 def _observation() -> Observation:

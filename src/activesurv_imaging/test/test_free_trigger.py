@@ -13,9 +13,9 @@ import pytest
 
 from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.sensor_model import SensorModel
+from activesurv_common.statuses import ObservationStatus
 from activesurv_imaging.capture import CaptureCore, ImagerConfig
 from activesurv_imaging.errors import ImagingError
-from activesurv_imaging.observation import ObservationStatus
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 
 V = np.array([0.02, 0.0, 0.0])  # m/s

@@ -28,7 +28,7 @@ from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind, Kill
 from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.observer import Observer
-from activesurv_bringup.specs import mount_parameters, stage_spec
+from activesurv_bringup.specs import imager_spec, mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
 from activesurv_common.ros import qos, topics
 from activesurv_dispatch.sensors import Sensor, setup_to_dict
@@ -175,19 +175,21 @@ def camera_specs(
         **truth,
         **_intrinsics(files, cid),
     }
-    imager_params: dict[str, Any] = {
-        **sim,
-        **exp.imager_config(cid, fault).to_parameters(),
-        **mount_parameters(s),
-        'reliable_images': True,
-        **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
-    }
+    imager = imager_spec(
+        s,
+        exp.imager_config(cid, fault).to_parameters(),
+        sim_time=True,
+        extra={
+            'reliable_images': True,
+            **({'obstacles_file': files['setup_file']} if exp.setup.obstacles else {}),
+        },
+    )
     if fault is not None and fault.kind is FaultKind.FROZEN:
         cam_params['inject_frozen'] = True
     return [
         stage,  # 10 Hz: states at the demand instants come extra
         NodeSpec(f'{cid}_camera', 'activesurv_sim.sim_camera_node', parameters=cam_params),
-        NodeSpec(f'{cid}_imager', 'activesurv_imaging.imager_node', parameters=imager_params),
+        imager,
     ]
 
 

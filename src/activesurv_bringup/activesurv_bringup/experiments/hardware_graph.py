@@ -38,7 +38,7 @@ from activesurv_bringup.experiments.graph import (
     run_graph,
 )
 from activesurv_bringup.experiments.options import RunOptions
-from activesurv_bringup.specs import bridge_spec, mount_parameters, source_specs
+from activesurv_bringup.specs import bridge_spec, imager_spec, source_specs
 from activesurv_common.calibration import pose_to_list
 from activesurv_common.ros import qos, topics
 from activesurv_common.trigger import SourceKind, Trigger
@@ -178,31 +178,27 @@ def hardware_specs(
         specs.append(bridge_spec(cid, files[f'controller:{cid}'], home))
         sources, remap = source_specs(cam, files['calibration'])
         specs += sources
+        commissioned = Path(files['calibration'], f'{cid}.yaml')
         specs.append(
-            NodeSpec(
-                f'{cid}_imager',
-                'activesurv_imaging.imager_node',
-                parameters={
-                    'use_sim_time': False,
-                    **imager_config(
-                        cam, exp.setup.marker_radius, motion_correction
-                    ).to_parameters(),
-                    **mount_parameters(s),
+            imager_spec(
+                s,
+                imager_config(cam, exp.setup.marker_radius, motion_correction).to_parameters(),
+                sim_time=False,
+                remappings=remap,
+                extra={
                     'record_frames': record_frames == 'used',
                     # A software-triggered driver: its Trigger service, called ahead.
-                    'trigger_service': cam.trigger_service
-                    if cam.trigger == Trigger.SOFTWARE
-                    else '',
+                    'trigger_service': (
+                        cam.trigger_service if cam.trigger == Trigger.SOFTWARE else ''
+                    ),
                     'trigger_lead': cam.trigger_lead,
                     # The commissioned intrinsics, whatever the driver's camera_info says.
                     **(
-                        {'camera_info_file': f'{files["calibration"]}/{cid}.yaml'}
-                        if cam.source.kind == SourceKind.TOPIC
-                        and Path(files['calibration'], f'{cid}.yaml').is_file()
+                        {'camera_info_file': str(commissioned)}
+                        if cam.source.kind == SourceKind.TOPIC and commissioned.is_file()
                         else {}
                     ),
                 },
-                remappings=remap,
             )
         )
     if hw.table is not None:

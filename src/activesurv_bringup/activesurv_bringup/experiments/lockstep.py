@@ -31,6 +31,7 @@ from activesurv_bringup.experiments.faults import Fault, FaultKind
 from activesurv_common.mount import CameraMount
 from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import Obstacle, sight_blocked
+from activesurv_common.statuses import ObservationStatus
 from activesurv_dispatch.motion import Capture
 from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.session import Dispatcher
@@ -39,7 +40,6 @@ from activesurv_evaluation.tracking import Snapshot
 from activesurv_fusion.collector import Answer, DemandBatch, camera_answer, resolve
 from activesurv_fusion.config import FusionConfig
 from activesurv_imaging.capture import CaptureCore
-from activesurv_imaging.observation import ObservationStatus
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.session import PredictionSession
 from activesurv_sim.render import Renderer, SensorNoise
@@ -281,7 +281,7 @@ def _capture(
     rec = DemandRecord(capture.demand.index, tj, truth.side.copy(), truth.side_normal.copy())
     rec.assigned = list(capture.cameras)
     rec.missing = list(result.cameras_missing)
-    rec.status = result.status.name.lower()
+    rec.status = result.status.label
     rec.reason = result.reason
     rec.visibility = observed_visibility(
         exp.setup, exp.model, poses, truth.side, truth.side_normal

@@ -24,7 +24,7 @@ from rosgraph_msgs.msg import Clock
 
 from activesurv_bringup.errors import BagError
 from activesurv_bringup.observer import Observer
-from activesurv_bringup.specs import live_view_spec, mount_parameters
+from activesurv_bringup.specs import imager_spec, live_view_spec
 from activesurv_common.ros.conversions import gray_to_image, sec_to_time
 from activesurv_dispatch.sensors import load_setup, setup_from_dict
 from activesurv_launch.launcher import Launcher, NodeSpec
@@ -62,18 +62,14 @@ def replay_specs(record: RunRecord, bag: Path) -> list[NodeSpec]:
         own = dict(told.get(s.camera_id, {}))
         own.pop('camera_id', None)
         specs.append(
-            NodeSpec(
-                f'{s.camera_id}_imager',
-                'activesurv_imaging.imager_node',
-                parameters={
-                    **sim,
-                    'camera_id': s.camera_id,
-                    'marker_radius': record.marker_radius,
-                    **own,
+            imager_spec(
+                s,
+                {'camera_id': s.camera_id, 'marker_radius': record.marker_radius, **own},
+                sim_time=True,
+                extra={
                     'reliable_images': True,
                     'exact_states': not own,
                     'frame_timeout': max(3.0, float(own.get('frame_timeout', 0.0))),
-                    **mount_parameters(s),
                 },
             )
         )

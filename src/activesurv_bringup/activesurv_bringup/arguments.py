@@ -3,8 +3,9 @@
 A run starts with steps that take minutes (commissioning a rig, starting nodes); a bad argument
 found after them wastes that time. :func:`check` looks at everything a command line says that
 can be judged without running anything (numbers in range, files that exist and parse, names
-that are known) and raises :class:`ConfigError` with a one-line reason at the first problem. It
-imports only light modules, so a refusal comes within a second.
+that are known) and raises :class:`ConfigError` with a one-line reason at the first problem,
+and builds on the way the option records the commands run with (:class:`Checked`): each
+setting is checked once, where its record is built. A refusal comes within a second.
 """
 
 from __future__ import annotations
@@ -12,15 +13,19 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.faults import parse_fault, parse_kill
+from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.experiments.session_options import SurveilOptions
 from activesurv_bringup.files import dds_profile_path
 from activesurv_bringup.rig.hardware import read
 from activesurv_bringup.rig.rigs import CALIBRATIONS, nominal_mounts
+from activesurv_bringup.specs import live_view_spec
 from activesurv_common.calibration import load_calibration
 from activesurv_common.errors import CalibrationError
 from activesurv_sim.rig import RigError, load_rig
@@ -104,13 +109,56 @@ def output_dir(name: str, path: Path | None) -> None:
         raise ConfigError(f'{name} {path}: exists and is not empty (nothing is overwritten)')
 
 
-def session(args: argparse.Namespace) -> None:
-    """A surveillance session's options, checked as the session will check them."""
-    SurveilOptions.from_args(args)
+def session(args: argparse.Namespace) -> SurveilOptions:
+    """A surveillance session's options (its rig is chosen later, after the checks)."""
+    opts = SurveilOptions.from_args(args)
     if args.objects_at_once > 1 and getattr(args, 'hardware', None) is not None:
         raise ConfigError(
             '--objects-at-once > 1 needs the simulator: a real xy table carries one object'
         )
+    return opts
+
+
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """The run options of an ``experiment``, ``surveil`` or ``demo`` command line.
+
+    Raises:
+        ConfigError: for a malformed fault, kill or profile, or options that do not mix.
+    """
+    profile = getattr(args, 'dds_profile', None)
+    port = getattr(args, 'foxglove', None)
+    return RunOptions(
+        extra=() if port is None else (live_view_spec(port),),
+        preview_rate=0.0 if port is None else 12.0,  # >= 10 Hz in the live view
+        rtf=float(args.rtf),
+        image_rate=float(getattr(args, 'image_rate', 2.0)),
+        faults=tuple(parse_fault(f) for f in getattr(args, 'fault', None) or []),
+        kills=tuple(parse_kill(k) for k in getattr(args, 'kill', None) or []),
+        compose=bool(getattr(args, 'compose', False)),
+        processes=str(getattr(args, 'processes', 'containers')),
+        hosts=str(getattr(args, 'hosts', 'single')),
+        dds_profile=dds_profile_path(profile) if profile else None,
+        record_frames=str(getattr(args, 'record_frames', 'used')),
+    )
+
+
+@dataclass(frozen=True)
+class Checked:
+    """What a command line says, built once while it is checked (the commands take these,
+    never the raw arguments again).
+
+    Attributes:
+        run: an experiment's, session's or demo's run options.
+        surveil: a session's options (its rig chosen when it runs).
+        controllers: ``activesurv lab --controller NAME=PORT``.
+        delays, offsets: ``activesurv lab --exposure-delay / --clock-offset NAME=S``.
+    """
+
+    run: RunOptions | None = None
+    surveil: SurveilOptions | None = None
+    controllers: Mapping[str, str] = field(default_factory=dict)
+    delays: Mapping[str, float] = field(default_factory=dict)
+    offsets: Mapping[str, float] = field(default_factory=dict)
 
 
 def controllers(texts: list[str]) -> dict[str, str]:
@@ -215,7 +263,7 @@ def _get(args: argparse.Namespace, name: str) -> Any:
     return getattr(args, name, None)
 
 
-def check(args: argparse.Namespace) -> None:
+def check(args: argparse.Namespace) -> Checked:
     """Refuse a command line that cannot run, before anything runs.
 
     Raises:
@@ -242,27 +290,22 @@ def check(args: argparse.Namespace) -> None:
     hardware(args)
     if cmd == 'experiment' and _get(args, 'set_name') == 'C':
         scene(args)
+    built: dict[str, Any] = {}
     if cmd == 'lab':
-        controllers(_get(args, 'controller') or [])
-        timings(_get(args, 'exposure_delay') or [], '--exposure-delay', 0.0, 1.0)
-        timings(_get(args, 'clock_offset') or [], '--clock-offset', -1.0, 1.0)
+        built['controllers'] = controllers(_get(args, 'controller') or [])
+        built['delays'] = timings(_get(args, 'exposure_delay') or [], '--exposure-delay', 0, 1)
+        built['offsets'] = timings(_get(args, 'clock_offset') or [], '--clock-offset', -1, 1)
         positive('--frame-rate', _get(args, 'frame_rate'))
     if cmd in ('experiment', 'surveil', 'demo', 'lab', 'commission'):
         rig_file(_get(args, 'rig'))
     if cmd in ('experiment', 'surveil', 'demo'):
         calibration(_get(args, 'calibration'))
-        profile = _get(args, 'dds_profile')
-        if profile:
-            dds_profile_path(profile)
+        built['run'] = run_options(args)
     if cmd == 'experiment':
         trajectory('--trajectory', _get(args, 'trajectory'))
         expect(_get(args, 'expect'))
-        for f in _get(args, 'fault') or []:
-            parse_fault(f)
-        for k in _get(args, 'kill') or []:
-            parse_kill(k)
     if cmd == 'surveil':
-        session(args)
+        built['surveil'] = session(args)
     if cmd == 'replay':
         bag = Path(args.bag)
         if not bag.exists():
@@ -271,3 +314,4 @@ def check(args: argparse.Namespace) -> None:
         output_dir('--out', _get(args, 'out'))
     if cmd == 'demo':
         output_dir('--out', _get(args, 'out'))
+    return Checked(**built)

@@ -39,8 +39,9 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from activesurv_bringup import __version__
 from activesurv_bringup.errors import USER_ERRORS, ConfigError, HardwareCheckError
@@ -49,6 +50,9 @@ from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
 from activesurv_bringup.rig.parsers import add_hardware_arguments, add_rig_arguments
 from activesurv_common.lifetime import STOP_SIGNALS, StopRequested
 from activesurv_launch.domains import isolate
+
+if TYPE_CHECKING:  # the checks load what they check: after --help
+    from activesurv_bringup.arguments import Checked
 
 SYSTEMS = ('static', 'medium', 'fast')
 DEFAULT_SEED = 1
@@ -465,33 +469,6 @@ def _add_rig(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run_options(args: argparse.Namespace) -> RunOptions:
-    """The run options of an ``experiment`` or ``demo`` command line.
-
-    Raises:
-        ConfigError: for a malformed fault, kill or profile, or options that do not mix.
-    """
-    from activesurv_bringup.experiments.faults import parse_fault, parse_kill
-    from activesurv_bringup.files import dds_profile_path
-    from activesurv_bringup.specs import live_view_spec
-
-    profile = getattr(args, 'dds_profile', None)
-    port = getattr(args, 'foxglove', None)
-    return RunOptions(
-        extra=() if port is None else (live_view_spec(port),),
-        preview_rate=0.0 if port is None else 12.0,  # >= 10 Hz in the live view
-        rtf=float(args.rtf),
-        image_rate=float(getattr(args, 'image_rate', 2.0)),
-        faults=tuple(parse_fault(f) for f in getattr(args, 'fault', [])),
-        kills=tuple(parse_kill(k) for k in getattr(args, 'kill', [])),
-        compose=bool(getattr(args, 'compose', False)),
-        processes=str(getattr(args, 'processes', 'containers')),
-        hosts=str(getattr(args, 'hosts', 'single')),
-        dds_profile=dds_profile_path(profile) if profile else None,
-        record_frames=str(getattr(args, 'record_frames', 'used')),
-    )
-
-
 def experiment(
     set_name: str,
     system: str,
@@ -842,7 +819,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         from activesurv_bringup import arguments  # the checks load what they check: after --help
 
-        arguments.check(args)
+        checked = arguments.check(args)
         if simulated(args):
             claim = isolate(os.environ)
             if not claim.chosen_by_user:
@@ -851,7 +828,7 @@ def main(argv: list[str] | None = None) -> int:
                     '(a free one, localhost discovery; set ROS_DOMAIN_ID to choose)',
                     flush=True,
                 )
-        _dispatch(args)
+        _dispatch(args, checked)
     except HardwareCheckError as exc:
         if args.command != 'hardware':
             print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
@@ -897,17 +874,17 @@ def _drop_if_empty(out: Path) -> None:
         pass
 
 
-def _dispatch(args: argparse.Namespace) -> None:
+def _dispatch(args: argparse.Namespace, checked: Checked) -> None:
     if getattr(args, 'hardware', None) is not None and args.command != 'stop':
         from activesurv_bringup.rig.hardware import confirm_motion, read
 
         rig_file = read(args.hardware)
         what = args.hardware_command if args.command == 'hardware' else args.command
         confirm_motion(rig_file, what, args.yes, args.home or rig_file.home)
-    COMMANDS[args.command](args)
+    COMMANDS[args.command](args, checked)
 
 
-def _experiment_command(args: argparse.Namespace) -> None:
+def _experiment_command(args: argparse.Namespace, checked: Checked) -> None:
     experiment(
         args.set_name,
         args.system,
@@ -916,7 +893,7 @@ def _experiment_command(args: argparse.Namespace) -> None:
         args.mode,
         args.trajectory,
         args.expect,
-        run_options(args),
+        checked.run,
         args.predictor,
         args.rig,
         args.calibration,
@@ -927,8 +904,7 @@ def _experiment_command(args: argparse.Namespace) -> None:
     )
 
 
-def _surveil_command(args: argparse.Namespace) -> None:
-    from activesurv_bringup.experiments.session_options import SurveilOptions
+def _surveil_command(args: argparse.Namespace, checked: Checked) -> None:
     from activesurv_bringup.rig.choice import choose
 
     new_output_dir(args.out)  # refused before anything is commissioned
@@ -946,33 +922,33 @@ def _surveil_command(args: argparse.Namespace) -> None:
         hw = with_measured_delays(hw, calibration_dir(hw, args.calibration), say)
     else:
         rig = choose(args.rig, args.calibration, args.rig_seed, cache_dir(), say)
-    surveil(args.out, SurveilOptions.from_args(args, rig), run_options(args), hw, args.home)
+    assert checked.surveil is not None  # built by the checks of a surveil command line
+    surveil(args.out, replace(checked.surveil, rig=rig), checked.run, hw, args.home)
 
 
-def _bag_command(args: argparse.Namespace) -> None:
+def _bag_command(args: argparse.Namespace, checked: Checked) -> None:
     from activesurv_recording.salvage import reindex
 
     print(json.dumps(reindex(args.bag).as_dict(), indent=2))
 
 
-def _lab_command(args: argparse.Namespace) -> None:
-    from activesurv_bringup import arguments
+def _lab_command(args: argparse.Namespace, checked: Checked) -> None:
     from activesurv_bringup.rig.lab import run_lab
 
     run_lab(
         args.rig,
         args.out,
         _camera_list(args.cameras),
-        controllers=arguments.controllers(args.controller),
+        controllers=dict(checked.controllers),
         frame_rate=args.frame_rate,
         namespace=args.namespace,
-        delays=arguments.timings(args.exposure_delay, '--exposure-delay', 0.0, 1.0),
-        offsets=arguments.timings(args.clock_offset, '--clock-offset', -1.0, 1.0),
+        delays=dict(checked.delays),
+        offsets=dict(checked.offsets),
         trigger=args.trigger,
     )
 
 
-def _stop_command(args: argparse.Namespace) -> None:
+def _stop_command(args: argparse.Namespace, checked: Checked) -> None:
     from activesurv_bringup.rig.hardware import read
     from activesurv_hardware.ros.estop import run_stop  # rclpy: only this command needs it
 
@@ -984,7 +960,7 @@ def _stop_command(args: argparse.Namespace) -> None:
     )
 
 
-def _hardware_command(args: argparse.Namespace) -> None:
+def _hardware_command(args: argparse.Namespace, checked: Checked) -> None:
     if args.hardware_command == 'measure-delay':
         print('\n'.join(measure_delay(args)))
     else:
@@ -993,23 +969,21 @@ def _hardware_command(args: argparse.Namespace) -> None:
         print('\n'.join(run_hardware_command(args)))
 
 
-def _rig_command(args: argparse.Namespace) -> None:
+def _rig_command(args: argparse.Namespace, checked: Checked) -> None:
     from activesurv_bringup.rig.rigs import run as write_rig
 
     print(f'rig written: {write_rig(args)}')
 
 
 # What each command runs (its arguments were checked before: arguments.check).
-COMMANDS: dict[str, Callable[[argparse.Namespace], object]] = {
+COMMANDS: dict[str, Callable[[argparse.Namespace, Checked], object]] = {
     'experiment': _experiment_command,
     'surveil': _surveil_command,
-    'replay': lambda a: replay(a.bag, a.out, a.rtf, a.foxglove),
+    'replay': lambda a, _: replay(a.bag, a.out, a.rtf, a.foxglove),
     'bag': _bag_command,
-    'report': lambda a: report(a.path, a.out),
-    'demo': lambda a: demo(
-        a.out, a.seed, a.mode, run_options(a), a.rig, a.calibration, a.rig_seed
-    ),
-    'commission': lambda a: commission(
+    'report': lambda a, _: report(a.path, a.out),
+    'demo': lambda a, c: demo(a.out, a.seed, a.mode, c.run, a.rig, a.calibration, a.rig_seed),
+    'commission': lambda a, _: commission(
         a.out, a.rig, a.live, a.cameras, a.hardware, a.stations, a.home
     ),
     'lab': _lab_command,

@@ -54,9 +54,13 @@ class TimeSeries:
         i = bisect.bisect_left(self._t, t)
         return i < len(self._t) and self._t[i] == t
 
-    def at(self, t: float, hold: float = 0.0) -> NDArray[np.float64] | None:
-        """The value at ``t``: interpolated between the samples around it, or the nearest sample
-        if ``t`` is outside the history by at most ``hold`` seconds; otherwise None."""
+    def at(
+        self, t: float, hold: float = 0.0, extrapolate: bool = False, max_rate: float = math.inf
+    ) -> NDArray[np.float64] | None:
+        """The value at ``t``: interpolated between the samples around it, or, if ``t`` is
+        outside the history by at most ``hold`` seconds, the nearest sample (``extrapolate``:
+        past the newest sample, the line through the last two, unless a component changes
+        faster than ``max_rate`` per second there: a jump, not a motion); otherwise None."""
         if not self._t or not math.isfinite(t):
             return None
         i = bisect.bisect_left(self._t, t)
@@ -67,7 +71,14 @@ class TimeSeries:
             w = (t - t0) / (t1 - t0)
             return np.asarray((1.0 - w) * self._v[i - 1] + w * self._v[i], dtype=np.float64)
         j = 0 if i == 0 else len(self._t) - 1
-        return self._v[j].copy() if abs(self._t[j] - t) <= hold else None
+        if abs(self._t[j] - t) > hold:
+            return None
+        if extrapolate and i == len(self._t) and len(self._t) >= 2:
+            t0, t1 = self._t[-2], self._t[-1]
+            rate = (self._v[-1] - self._v[-2]) / (t1 - t0)
+            if np.all(np.abs(rate) <= max_rate):
+                return np.asarray(self._v[-1] + rate * (t - t1), dtype=np.float64)
+        return self._v[j].copy()
 
 
 class FrameBuffer(Generic[T]):

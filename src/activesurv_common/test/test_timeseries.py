@@ -19,6 +19,17 @@ def test_timeseries_interpolates_and_keeps_out_of_order_samples_sorted() -> None
     assert not ts.add(4.0, [np.nan, 0.0])
 
 
+def test_timeseries_extrapolates_a_motion_but_not_a_jump() -> None:
+    ts = TimeSeries(2)
+    ts.add(1.0, [0.10, 0.06])
+    ts.add(1.1, [0.102, 0.06])  # 20 mm/s along x
+    assert np.allclose(ts.at(1.2, hold=0.2, extrapolate=True), [0.104, 0.06])
+    assert np.allclose(ts.at(1.2, hold=0.2), [0.102, 0.06])  # held without extrapolate
+    assert ts.at(1.4, hold=0.2, extrapolate=True) is None  # beyond the hold
+    ts.add(1.2, [100.0, 100.0])  # parked: a jump, held rather than flung further
+    assert np.allclose(ts.at(1.25, 0.2, True, max_rate=1.0), [100.0, 100.0])
+
+
 def test_clock_estimate_extrapolates_at_the_ticks_rate() -> None:
     c = ClockEstimate()
     assert c.now(0.0) is None

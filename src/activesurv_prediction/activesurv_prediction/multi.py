@@ -14,7 +14,11 @@ workspace), and each frame's fixes are shared out among them:
    distances; gated-out pairs cost more than any gated pair).
 3. *Birth.* A fix no track takes, inside the workspace, starts a new tentative track.
 4. *Confirmation.* A track confirmed gets the next object id (1, 2, ...) and its demands.
-5. *Death.* A track lost is dropped; its object's demands still to come end.
+5. *Death.* A track lost is dropped; its object's demands still to come end. A track is lost
+   when the overhead stream has run ``lost_timeout`` past its last fix (frames kept coming
+   without it), not when the clock has: a stream that lags the clock (a loaded machine, a slow
+   locator) delivers its fixes late, not never. Only a stream that stalls for ``stream_grace``
+   lets the clock decide.
 
 Demand instants of several objects are staggered, as a cell schedules its inspections: each
 object has one every ``interval`` seconds, offset so that instants of different objects are at
@@ -89,6 +93,8 @@ class MultiTracker:
     at_once: int = 2
     gate: float = GATE
     near: float = NEAR
+    stream_grace: float = 2.0  # s a stalled overhead stream may lag the clock before loss
+    stream_time: float = -math.inf  # the newest overhead frame's time
     tracks: list[Track] = field(default_factory=list)
     objects: int = 0
     manoeuvres_of_dead: int = 0
@@ -124,6 +130,7 @@ class MultiTracker:
         if any(not np.all(np.isfinite(v)) for v in z):
             raise PredictionError('fixes must be finite')
         events: list[str] = []
+        self.stream_time = max(self.stream_time, t)
         live = [k for k in self.tracks if k.alive and k.tracker.predictor.last_time is not None]
         taken: set[int] = set()
         if live and z:
@@ -168,9 +175,12 @@ class MultiTracker:
         return events
 
     def check_timeout(self, now: float) -> list[str]:
-        """Lose the tracks not seen for ``lost_timeout``; log lines of what changed."""
+        """Lose the tracks the overhead stream has not seen for ``lost_timeout`` (the clock
+        ``now`` decides only once the stream lags it by ``stream_grace``); log lines of what
+        changed."""
+        reference = max(self.stream_time, now - self.stream_grace)
         for k in self.tracks:
-            k.tracker.check_timeout(now)
+            k.tracker.check_timeout(min(now, reference))
         return self._housekeeping(now)
 
     def _housekeeping(self, t: float) -> list[str]:

@@ -81,6 +81,23 @@ def test_tracks_are_born_confirmed_and_die_and_ids_are_never_reused() -> None:
     assert tracker.tracks == []
 
 
+def test_a_stream_that_lags_the_clock_loses_no_track() -> None:
+    """Fixes that arrive 0.9 s late, with a 0.45 s gap (a loaded start-up, measured in a
+    session): the clock runs more than lost_timeout past the last fix, the stream does not."""
+    tracker = MultiTracker(interval=2.0, at_once=2, lost_timeout=1.0)
+    lag, t = 0.9, 0.5
+    while t < 8.0:
+        if not 3.0 < t < 3.45:  # frames lost on the way
+            tracker.update(t, [crossing(t, 0.07, 0.5, False)])
+        tracker.check_timeout(t + lag)  # the clock is ahead of the frames
+        t = round(t + 0.1, 6)
+    assert tracker.objects == 1  # one object, one identity
+    assert [k.object_id for k in tracker.tracks] == [1]
+    # A stream that stops for good: the clock ends the track after stream_grace as well.
+    tracker.check_timeout(t + tracker.lost_timeout + tracker.stream_grace + 0.1)
+    assert tracker.tracks == []
+
+
 def test_demands_of_objects_at_once_are_staggered_and_indexed_across_objects() -> None:
     interval = 2.0
     tracker = MultiTracker(interval=interval, at_once=2)

@@ -33,6 +33,7 @@ from activesurv_sim.errors import RenderError
 from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
 
 EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked
+TABLE_MAX_RATE = 1.0  # m/s: faster than any table moves an object (a jump: entering, parking)
 OBSTACLE_LEVEL = 120.0  # grey fixtures: neither the black plates nor the white markers
 _FACETS = 16  # a cylinder's side as a prism of this many faces
 
@@ -257,13 +258,16 @@ class SimulatedCamera:
         Raises:
             RenderError: if the object or stage state at ``t`` is unknown.
         """
-        state = self.objects.at(t, hold)
+        # The table keeps moving while its states are late: past the newest state the object is
+        # extrapolated along its last motion (a loaded machine delays a state, it does not stop
+        # the object); the stages' joints are held (a stage at rest is where it was).
+        state = self.objects.at(t, hold, extrapolate=True, max_rate=TABLE_MAX_RATE)
         if state is None:
             raise RenderError(f'no object state near t={t:.3f} s')
         if len(self.slots) > 1:  # several objects: every lane's (an unknown one is empty)
             parts = [state]
             for k in sorted(self.slots)[1:]:
-                other = self.slots[k].at(t, hold)
+                other = self.slots[k].at(t, hold, True, TABLE_MAX_RATE)
                 parts.append(EMPTY_LANE if other is None else other)
             state = np.concatenate(parts)
         if not isinstance(self.mount, CameraMount):

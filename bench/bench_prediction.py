@@ -88,7 +88,8 @@ def _experiments(seeds: int) -> dict[str, Any]:
                 ok, est, errs, vis = 0, 0, [], []
                 for seed in range(seeds):
                     run = Path(tmp) / f'{man}_{kind}_{seed}'
-                    doc = experiment('A', 'fast', run, seed, 'lockstep', str(csv), predictor=kind,
+                    doc = experiment('A', 'fast', run, seed=seed, mode='lockstep',
+                                     trajectory=str(csv), predictor=kind,
                                      calibration='truth')  # fmt: skip
                     s = summary(doc)
                     est += int(s['estimates'])

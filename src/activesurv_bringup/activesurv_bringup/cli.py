@@ -51,8 +51,9 @@ from activesurv_bringup.rig.parsers import add_hardware_arguments, add_rig_argum
 from activesurv_common.lifetime import STOP_SIGNALS, StopRequested
 from activesurv_launch.domains import isolate
 
-if TYPE_CHECKING:  # the checks load what they check: after --help
+if TYPE_CHECKING:  # the checks and the runs load what they need: after --help
     from activesurv_bringup.arguments import Checked
+    from activesurv_bringup.experiments.experiment import Experiment
 
 SYSTEMS = ('static', 'medium', 'fast')
 DEFAULT_SEED = 1
@@ -473,6 +474,7 @@ def experiment(
     set_name: str,
     system: str,
     out: Path,
+    *,
     seed: int = DEFAULT_SEED,
     mode: str = 'graph',
     trajectory: str | None = None,
@@ -489,49 +491,79 @@ def experiment(
     """Run one experiment into ``out`` (new or empty); returns its results document.
 
     With ``hardware`` it runs on that rig (its calibration: ``calibration``, else the hardware
-    file's), on the wall clock.
+    file's), on the wall clock; otherwise on the simulator playing ``rig`` (lockstep or the
+    node graph, by ``mode``).
 
     Raises:
         ConfigError: for a bad configuration; NodeDiedError if a node of the graph dies.
     """
     from activesurv_bringup.experiments.experiment import load_experiment
-    from activesurv_evaluation.runs import finish_run
+    from activesurv_bringup.experiments.scenes import SCENES
+    from activesurv_bringup.rig.choice import choose
 
     opts = options or RunOptions()
     if opts.kills and mode != 'graph':
         raise ConfigError('--kill needs --mode graph (lockstep has no processes to kill)')
-    from activesurv_bringup.rig.choice import choose
 
     def say(text: str) -> None:
         print(f'  Set {set_name} {system}: {text}', flush=True)
 
     new_output_dir(out)  # refused before anything is commissioned or run
-    if hardware is not None:
-        from activesurv_bringup.experiments.hardware_graph import run_hardware
-        from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
-        from activesurv_hardware.delays import with_measured_delays
-
-        hw = read(hardware)
-        choice = hardware_choice(hw, calibration)
-        hw = with_measured_delays(hw, calibration_dir(hw, calibration), say)
-        exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
-        exp = exp.with_predictor(predictor)
-        started = time.monotonic()
-        with results_on_stop(out):
-            run_hardware(exp, hw, out, opts, say, home or hw.home, motion_correction)
-        result = finish_run(out)
-        say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
-        return result
-    from activesurv_bringup.experiments.scenes import SCENES
-
-    choice = choose(rig, calibration, rig_seed, cache_dir(), say)
-    if set_name in SCENES:
-        return _scene(set_name, system, out, seed, choice, opts, say)
-    exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
-    exp = exp.with_predictor(predictor)
     started = time.monotonic()
+    if hardware is not None:
+        doc = _experiment_on_rig(
+            set_name, system, out, seed, trajectory, expect, predictor, opts, hardware,
+            calibration, home, motion_correction, say,
+        )  # fmt: skip
+    else:
+        choice = choose(rig, calibration, rig_seed, cache_dir(), say)
+        if set_name in SCENES:
+            return _scene(set_name, system, out, seed, choice, opts, say)
+        exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
+        doc = _simulated(exp.with_predictor(predictor), out, mode, opts, say)
+    say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
+    return doc
 
-    doc: dict[str, Any]
+
+def _experiment_on_rig(
+    set_name: str,
+    system: str,
+    out: Path,
+    seed: int,
+    trajectory: str | None,
+    expect: str | None,
+    predictor: str,
+    opts: RunOptions,
+    hardware: Path,
+    calibration: str | None,
+    home: bool,
+    motion_correction: bool,
+    say: Callable[[str], None],
+) -> dict[str, Any]:
+    """An experiment on the rig of the hardware file ``hardware`` (its measured delays)."""
+    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.experiments.hardware_graph import run_hardware
+    from activesurv_bringup.rig.hardware import calibration_dir, hardware_choice, read
+    from activesurv_evaluation.runs import finish_run
+    from activesurv_hardware.delays import with_measured_delays
+
+    hw = read(hardware)
+    choice = hardware_choice(hw, calibration)
+    hw = with_measured_delays(hw, calibration_dir(hw, calibration), say)
+    exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
+    with results_on_stop(out):
+        run_hardware(
+            exp.with_predictor(predictor), hw, out, opts, say, home or hw.home, motion_correction
+        )
+    return finish_run(out)
+
+
+def _simulated(
+    exp: Experiment, out: Path, mode: str, opts: RunOptions, say: Callable[[str], None]
+) -> dict[str, Any]:
+    """A simulated experiment: lockstep, the node graph, or the graph over network namespaces."""
+    from activesurv_evaluation.runs import finish_run
+
     if mode == 'lockstep':
         from activesurv_bringup.experiments.lockstep import run_lockstep
         from activesurv_evaluation.tracking import track_metrics
@@ -541,24 +573,21 @@ def experiment(
 
         track_log: list[Any] = []
         records = run_lockstep(exp, opts.faults, progress, track_log=track_log)
-        doc = finish_run(
+        return finish_run(
             out,
             record=exp.record(opts.faults, execution='lockstep'),
             demands=records,
             tracking=track_metrics([m for m, _ in track_log], [t for _, t in track_log]),
         )
-    elif opts.hosts == 'netns':
-        doc = _run_on_hosts(exp, out, opts, say)
-    else:
-        from activesurv_bringup.experiments.graph import run_graph
+    if opts.hosts == 'netns':
+        return _run_on_hosts(exp, out, opts, say)
+    from activesurv_bringup.experiments.graph import run_graph
 
-        if opts.dds_profile is not None:
-            say(f'Fast DDS profile {opts.dds_profile}')
-        with results_on_stop(out):
-            run_graph(exp, out, opts, progress=say)
-        doc = finish_run(out)
-    say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
-    return doc
+    if opts.dds_profile is not None:
+        say(f'Fast DDS profile {opts.dds_profile}')
+    with results_on_stop(out):
+        run_graph(exp, out, opts, progress=say)
+    return finish_run(out)
 
 
 @contextlib.contextmanager
@@ -786,8 +815,8 @@ def demo(
                     set_name,
                     system,
                     root / f'{set_name}_{system}',
-                    seed,
-                    mode,
+                    seed=seed,
+                    mode=mode,
                     options=options,
                     rig=rig,
                     calibration=calibration,
@@ -889,18 +918,18 @@ def _experiment_command(args: argparse.Namespace, checked: Checked) -> None:
         args.set_name,
         args.system,
         args.out,
-        args.seed,
-        args.mode,
-        args.trajectory,
-        args.expect,
-        checked.run,
-        args.predictor,
-        args.rig,
-        args.calibration,
-        args.rig_seed,
-        args.hardware,
-        args.home,
-        not args.no_motion_correction,
+        seed=args.seed,
+        mode=args.mode,
+        trajectory=args.trajectory,
+        expect=args.expect,
+        options=checked.run,
+        predictor=args.predictor,
+        rig=args.rig,
+        calibration=args.calibration,
+        rig_seed=args.rig_seed,
+        hardware=args.hardware,
+        home=args.home,
+        motion_correction=not args.no_motion_correction,
     )
 
 

@@ -248,9 +248,11 @@ class GrblDriver:
         self.letters: list[str] = []
         self.garbage_lines = 0
         self.alarms: list[str] = []
+        self.wco: tuple[float, ...] | None = None  # the last work offset reported
 
     def connect(self) -> list[str]:
         self.close()
+        self.wco = None
         self.line = SerialLine(self.port, self.baud, self.timeout)
         self.line.write(b'\r\n')
         try:
@@ -285,9 +287,14 @@ class GrblDriver:
             kind, payload = grbl.classify(text)
             if kind == 'status':
                 try:
-                    return grbl.parse_status(payload)
+                    st = grbl.parse_status(payload, self.wco)
                 except ProtocolError:
                     self.garbage_lines += 1
+                    if 'WPos' in payload and 'WCO' not in payload and self.wco is None:
+                        raise  # work positions with no offset yet: say so, not "no report"
+                    continue
+                self.wco = st.wco
+                return st
             elif kind == 'alarm':
                 self.alarms.append(grbl.alarm_text(payload))
             elif kind == 'other':
@@ -319,9 +326,17 @@ class GrblDriver:
 
     def poll(self) -> list[AxisReport]:
         st = self.status()
-        status = 'fault' if st.alarm else ('busy' if st.busy else 'idle')
+        # Hold:0 is a feed hold complete: nothing moves, and GRBL refuses every jog (error 8)
+        # until a cycle start; something other than this driver held it (a pendant, a sender).
+        held = st.state == 'Hold' and st.substate == 0
+        status = 'fault' if st.alarm or held else ('busy' if st.busy else 'idle')
+        detail = (
+            'Hold:0 (a feed hold is pending: resume with ~ once nothing else is queued)'
+            if held
+            else st.state
+        )
         return [
-            AxisReport(letter, st.mpos[i], status, st.alarm, st.state)
+            AxisReport(letter, st.mpos[i], status, st.alarm, detail)
             for i, letter in enumerate(self.letters)
         ]
 
@@ -343,9 +358,21 @@ class GrblDriver:
         self.command(grbl.format_jog_together(targets, feed).decode())
 
     def stop(self, axis: str) -> None:
-        """Feed hold, then jog cancel (real-time bytes, no reply): GRBL decelerates every axis
-        and flushes the jogs it holds. GRBL has one planner, so this stops the whole machine."""
-        self._line().write(grbl.FEED_HOLD + grbl.JOG_CANCEL)
+        """Stop the whole machine (GRBL has one planner). First the jog cancel (0x85: a jog,
+        ours, decelerates, every queued jog is flushed, back to Idle; at rest it does nothing);
+        then, by what the status says: a G-code cycle someone else started gets a feed hold, a
+        homing cycle a soft reset (the only way to stop it; GRBL then asks for homing again).
+        Never a feed hold at rest: GRBL would suspend (Hold:0) and refuse every later jog."""
+        line = self._line()
+        line.write(grbl.JOG_CANCEL)
+        try:
+            state = self.status().state
+        except (CommunicationError, ProtocolError):
+            return  # the cancel is sent; nothing more can be known
+        if state == 'Run':
+            line.write(grbl.FEED_HOLD)
+        elif state == 'Home':
+            line.write(grbl.SOFT_RESET)
 
 
 DriverFactory = Callable[..., Any]

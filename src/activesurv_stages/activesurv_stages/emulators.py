@@ -376,14 +376,27 @@ class GrblAxisSpec:
 
 
 class GrblEmulator(EmulatorBase):
-    """A GRBL 1.1 controller with homing enabled and soft limits on."""
+    """A GRBL 1.1 controller with homing enabled and soft limits on.
+
+    As the firmware behaves: jogs in machine (``G53``) or work coordinates (``G90``, the
+    machine position minus ``work_offset``); a feed hold during a jog cancels it, a feed hold
+    at rest suspends the controller (``Hold:0``: jogs refused with error 8 until ``~``);
+    status reports carry ``WCO`` every tenth report and ``Ov`` every twentieth.
+    """
 
     banner = b"\r\nGrbl 1.1h ['$' for help]\r\n[MSG:'$H'|'$X' to unlock]\r\n"
 
     def __init__(
-        self, link: Path, axes: Sequence[GrblAxisSpec], seed: int = 0, homing_time: float = 0.3
+        self,
+        link: Path,
+        axes: Sequence[GrblAxisSpec],
+        seed: int = 0,
+        homing_time: float = 0.3,
+        work_offset: Sequence[float] | None = None,
     ) -> None:
         self.specs = list(axes)
+        self.work_offset = [float(v) for v in work_offset or [0.0] * len(self.specs)]
+        self._reports = 0
         self.homing_time = homing_time
         self.sims: dict[str, AxisSimulator] = {}
         self.state = 'Alarm'
@@ -430,7 +443,13 @@ class GrblEmulator(EmulatorBase):
                 else ('Hold:0' if self._held else 'Idle')
             )
         pos = ','.join(f'{self.sims[s.letter].state(now)[0]:.3f}' for s in self.specs)
-        return f'<{self.state}|MPos:{pos}|FS:0,0>'
+        self._reports += 1
+        extra = ''
+        if self._reports % 10 == 1:  # GRBL sends the work offset now and then, not every time
+            extra += '|WCO:' + ','.join(f'{v:.3f}' for v in self.work_offset)
+        if self._reports % 20 == 2:
+            extra += '|Ov:100,100,100'
+        return f'<{self.state}|MPos:{pos}|FS:0,0{extra}>'
 
     def on_bytes(self, data: bytes, now: float) -> None:
         # Real-time commands act immediately, wherever they appear in the stream.
@@ -441,11 +460,14 @@ class GrblEmulator(EmulatorBase):
                 with self._state_lock:
                     self.send(self._status(now))
             elif c == grbl.FEED_HOLD:
-                # GRBL 1.1: a feed hold during a jog cancels it (back to Idle); this emulator
-                # runs jogs only, so a hold is never left pending.
+                # GRBL 1.1: a feed hold during a jog cancels it (back to Idle); at rest it
+                # suspends the controller (Hold:0) until a cycle start.
                 with self._state_lock:
+                    moving = any(s.busy(now) for s in self.sims.values())
                     for s in self.sims.values():
                         s.stop(now)
+                    if not moving and self.state == 'Idle':
+                        self._held = True
             elif c == grbl.CYCLE_START:
                 self._held = False
             elif c == grbl.JOG_CANCEL:
@@ -494,8 +516,14 @@ class GrblEmulator(EmulatorBase):
         if self.state == 'Alarm':
             self.send('error:9')
             return
+        if self._held:
+            self.send('error:8')  # a jog only in Idle or Jog
+            return
         body = line[3:] if line.startswith('$J=') else line
-        words = body.replace('G90', ' ').replace('G1', ' ').replace('G0', ' ').split()
+        machine = 'G53' in body
+        words = (
+            body.replace('G53', ' ').replace('G90', ' ').replace('G1', ' ').replace('G0', ' ')
+        ).split()
         try:
             values = {w[0]: float(w[1:]) for w in words}
         except (ValueError, IndexError):
@@ -505,6 +533,10 @@ class GrblEmulator(EmulatorBase):
         if feed is None or feed <= 0:
             self.send('error:22')
             return
+        if not machine:  # work coordinates: the machine position minus the work offset
+            for i, axis in enumerate(self.specs):
+                if axis.letter in values:
+                    values[axis.letter] += self.work_offset[i]
         for letter, target in values.items():
             spec = next((s for s in self.specs if s.letter == letter), None)
             if spec is None:

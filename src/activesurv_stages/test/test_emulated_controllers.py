@@ -134,6 +134,55 @@ def test_grbl_driver_direct(grbl_emu: GrblEmulator) -> None:
     d.close()
 
 
+def _settle(d: GrblDriver, deadline: float = 5.0) -> list[str]:
+    end = time.monotonic() + deadline
+    while (states := [r.status for r in d.poll()]) and 'busy' in states:
+        assert time.monotonic() < end, states
+        time.sleep(0.02)
+    return states
+
+
+def test_grbl_as_the_firmware_holds_and_jogs(tmp_path: Path) -> None:
+    """What real GRBL 1.1 does and the emulator now does too: a feed hold at rest suspends it
+    (Hold:0, jogs refused with error 8); the driver's stop never sends one at rest, so a goal
+    after a stop still moves; jogs go in machine coordinates whatever work offset is set."""
+    emu = GrblEmulator(
+        tmp_path / 'ttyG',
+        [GrblAxisSpec('X', 300.0, 6000.0, 500.0), GrblAxisSpec('Y', 200.0, 1800.0, 100.0)],
+        homing_time=0.1,
+        work_offset=[5.0, -2.0],  # a G10/G92 offset left by another program
+    )
+    d = GrblDriver(str(emu.link))
+    try:
+        d.connect()
+        d.home('X')
+        d.move('X', 20.0, 100.0)
+        _settle(d)
+        assert d.poll()[0].position == pytest.approx(20.0, abs=1e-3)  # MPos, not WPos + 5
+        d.stop('X')  # at rest: the jog cancel only
+        time.sleep(0.05)
+        assert _settle(d) == ['idle', 'idle']
+        d.move('X', 30.0, 10.0)  # still obeys (10 mm/s: a second's travel)
+        time.sleep(0.3)
+        d.stop('X')  # mid-jog: decelerates, back to Idle
+        assert _settle(d) == ['idle', 'idle']
+        assert 20.0 < d.poll()[0].position < 30.0
+        # What a feed hold at rest does to the firmware: suspended, and the driver says so.
+        d._line().write(b'!')
+        time.sleep(0.05)
+        report = d.poll()[0]
+        assert report.status == 'fault'
+        assert 'Hold:0' in report.detail
+        with pytest.raises(ControllerRejectedError, match='error:8'):
+            d.move('X', 10.0, 100.0)
+        d._line().write(b'~')
+        time.sleep(0.05)
+        assert _settle(d) == ['idle', 'idle']
+    finally:
+        d.close()
+        emu.close()
+
+
 @pytest.mark.parametrize('protocol', ['zaber', 'grbl'])
 def test_bridge_moves_and_recovers_from_every_fault(
     protocol: str, zaber_emu: ZaberEmulator, grbl_emu: GrblEmulator

@@ -50,6 +50,13 @@ def test_grbl_classify_and_status() -> None:
         with pytest.raises(ProtocolError):
             grbl.parse_status(junk)
     assert 'soft limit' in grbl.alarm_text('2')
-    assert grbl.format_jog('A', 90.0, 600.0) == b'$J=G90 A90.0000 F600.000\n'
+    assert grbl.format_jog('A', 90.0, 600.0) == b'$J=G53 A90.0000 F600.000\n'  # machine frame
+    # $10=0: work positions, turned into machine positions with the (occasional) WCO.
+    w = grbl.parse_status('<Idle|WPos:1.000,2.000|FS:0,0|WCO:10.000,-5.000|Ov:100,100,100>')
+    assert w.mpos == (11.0, -3.0)
+    assert w.wco == (10.0, -5.0)
+    assert grbl.parse_status('<Idle|WPos:1.000,2.000|FS:0,0>', w.wco).mpos == (11.0, -3.0)
+    with pytest.raises(ProtocolError, match=r'\$10=1'):
+        grbl.parse_status('<Idle|WPos:1.000,2.000|FS:0,0>')
     with pytest.raises(ProtocolError):
         grbl.format_jog('Q', 1.0, 600.0)

@@ -7,6 +7,12 @@ with no newline and no ``ok``: ``?`` status report, ``!`` feed hold, ``~`` cycle
 Check, Home, Sleep. ``ALARM:N`` lines announce an alarm (position may be lost); after a reset
 with homing enabled the controller starts in Alarm and asks for ``$H`` (home) or ``$X``.
 Positions are machine units (mm, or degrees for a rotary axis); feed rates are units/min.
+
+Jogs are sent in machine coordinates (``$J=G53 ...``): the positions read back are the status
+report's ``MPos`` (or ``WPos`` + ``WCO`` when ``$10`` asks for work positions), so a work
+offset some other program left (G10, G92) never shifts where the stage goes. A jog is stopped
+with the jog cancel (0x85) alone: GRBL's jogging notes warn that a feed hold sent once the jog
+has ended suspends the controller (``Hold:0``, every later jog refused with error 8).
 """
 
 from __future__ import annotations
@@ -52,8 +58,9 @@ class Status:
 
     state: str
     substate: int | None
-    mpos: tuple[float, ...]
+    mpos: tuple[float, ...]  # machine positions (None-free: WPos + WCO when $10 says WPos)
     feed: float
+    wco: tuple[float, ...] | None = None  # the work coordinate offset, when reported
 
     @property
     def busy(self) -> bool:
@@ -64,24 +71,40 @@ class Status:
         return self.state == 'Alarm'
 
 
-def parse_status(line: str) -> Status:
-    """Parse ``<State|MPos:...|FS:...>``.
+def parse_status(line: str, wco: tuple[float, ...] | None = None) -> Status:
+    """Parse ``<State|MPos:...|FS:...>`` (fields in any order, unknown ones ignored: ``Bf``,
+    ``Ln``, ``Pn``, ``Ov``, ``A``). A report in work positions (``WPos``: ``$10=0``) is turned
+    into machine positions with its ``WCO``, or the last one reported (``wco``: GRBL sends it
+    only every 10-30 reports).
 
     Raises:
-        ProtocolError: if the line is not a status report.
+        ProtocolError: if the line is not a status report, or has work positions and no
+            offset is known yet.
     """
     m = _STATUS.match(line.strip())
     if not m:
         raise ProtocolError(f'not a GRBL status report: {line!r}')
     fields = dict(f.split(':', 1) for f in m['fields'].split('|') if ':' in f)
     try:
-        pos = tuple(float(v) for v in fields.get('MPos', fields.get('WPos', '')).split(','))
+        offset = tuple(float(v) for v in fields['WCO'].split(',')) if 'WCO' in fields else wco
         feed = float(fields.get('FS', fields.get('F', '0')).split(',')[0])
+        if 'MPos' in fields:
+            pos = tuple(float(v) for v in fields['MPos'].split(','))
+        elif 'WPos' in fields:
+            work = tuple(float(v) for v in fields['WPos'].split(','))
+            if offset is None or len(offset) != len(work):
+                raise ProtocolError(
+                    f'GRBL reports work positions ($10=0) and no WCO yet: {line!r} '
+                    '(set $10=1 for machine positions)'
+                )
+            pos = tuple(w + o for w, o in zip(work, offset, strict=True))
+        else:
+            pos = ()
     except ValueError as exc:
         raise ProtocolError(f'malformed GRBL status report: {line!r}') from exc
     if not pos:
         raise ProtocolError(f'GRBL status report without a position: {line!r}')
-    return Status(m['state'], int(m['sub']) if m['sub'] else None, pos, feed)
+    return Status(m['state'], int(m['sub']) if m['sub'] else None, pos, feed, offset)
 
 
 def classify(line: str) -> tuple[str, str]:
@@ -123,7 +146,8 @@ def alarm_text(code: str) -> str:
 
 
 def format_jog(axis: str, position: float, feed_per_min: float) -> bytes:
-    """An absolute jog (cancellable with 0x85): ``$J=G90 X10.0000 F600.000``.
+    """An absolute jog in machine coordinates (cancellable with 0x85):
+    ``$J=G53 X10.0000 F600.000``.
 
     Raises:
         ProtocolError: for an unknown axis letter or a non-positive feed.
@@ -132,12 +156,13 @@ def format_jog(axis: str, position: float, feed_per_min: float) -> bytes:
         raise ProtocolError(f'unknown GRBL axis {axis!r}')
     if not feed_per_min > 0:
         raise ProtocolError(f'feed rate must be > 0, got {feed_per_min}')
-    return f'$J=G90 {axis}{position:.4f} F{feed_per_min:.3f}\n'.encode('ascii')
+    return f'$J=G53 {axis}{position:.4f} F{feed_per_min:.3f}\n'.encode('ascii')
 
 
 def format_jog_together(targets: dict[str, float], feed_per_min: float) -> bytes:
     """One absolute jog of several axes along a straight line (GRBL coordinates them; the
-    feed is the speed along the line): ``$J=G90 X10.0000 Y5.0000 F600.000``.
+    feed is the speed along the line), in machine coordinates:
+    ``$J=G53 X10.0000 Y5.0000 F600.000``.
 
     Raises:
         ProtocolError: for an unknown axis letter, no axis, or a non-positive feed.
@@ -147,4 +172,4 @@ def format_jog_together(targets: dict[str, float], feed_per_min: float) -> bytes
     if not feed_per_min > 0:
         raise ProtocolError(f'feed rate must be > 0, got {feed_per_min}')
     words = ' '.join(f'{a}{v:.4f}' for a, v in targets.items())
-    return f'$J=G90 {words} F{feed_per_min:.3f}\n'.encode('ascii')
+    return f'$J=G53 {words} F{feed_per_min:.3f}\n'.encode('ascii')

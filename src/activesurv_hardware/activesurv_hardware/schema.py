@@ -22,10 +22,8 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 
 from activesurv_common.schema import StrictModel, problems
 from activesurv_common.trigger import Trigger
+from activesurv_sim.xytable import TABLE_JOINTS
 from activesurv_stages.schema import DAISY_CHAINED, ControllerFile
-
-TABLE_JOINTS = ('table_x', 'table_y')
-
 
 Vector3 = tuple[float, float, float]
 Range = tuple[float, float]

@@ -57,8 +57,6 @@ def table_states(table: XYTable | ObjectStream, t: float) -> list[tuple[int, int
 
 # What a lab camera logs once it is up (the lab reports ready when every camera has).
 DRIVER_UP = 'camera driver up'
-TABLE_ID = 'xy_table'  # the table as a two-axis stage (commissioning): xy_table/stage/...
-TABLE_JOINTS = ('table_x', 'table_y')
 
 
 def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> SimulatedCamera:

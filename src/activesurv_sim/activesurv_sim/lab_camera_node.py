@@ -44,9 +44,10 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import ObjectState
 from activesurv_sim import conversions as conv
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
+from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
 LAB_PARAMS = (
     Param('exposure_delay', 0.02, 's from exposure to the frame stamp (read-out)', minimum=0.0),

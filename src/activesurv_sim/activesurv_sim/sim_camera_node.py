@@ -39,9 +39,10 @@ from activesurv_common.ros.conversions import (
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS, published_model, simulated_camera
+from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera_params import PARAMS
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
 
 class SimCameraNode(Node):

@@ -25,6 +25,8 @@ from activesurv_stages.kinematics import plan_move
 
 Array = NDArray[np.float64]
 
+TABLE_ID = 'xy_table'  # the table as a two-axis stage: xy_table/stage/goal, .../joint_states
+TABLE_JOINTS = ('table_x', 'table_y')
 TABLE_RANGE = ((0.0, 0.5), (0.0, 0.2))  # m (Table I)
 TABLE_MAX_SPEED = 0.3  # m/s (Table I)
 

@@ -48,7 +48,7 @@ from activesurv_imaging.capture import ImagerConfig
 from activesurv_interfaces.msg import StageGoal
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.run_record import OnRig, RunRecord
-from activesurv_sim.conversions import TABLE_ID
+from activesurv_sim.xytable import TABLE_ID
 
 START_MARGIN = 25.0  # s from the launch to run time 0: nodes up, stages and table in place
 

@@ -64,9 +64,8 @@ from activesurv_imaging.errors import CalibrationError
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_launch.session import GraphSession
 from activesurv_sim.board import BoardFixture
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
 from activesurv_sim.rig import Rig, save_rig
-from activesurv_sim.xytable import TABLE_RANGE
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS, TABLE_RANGE
 
 Array = NDArray[np.float64]
 Progress = Callable[[str], None]

@@ -41,7 +41,7 @@ from activesurv_imaging.calibration import find_corners
 from activesurv_launch.launcher import Launcher
 from activesurv_recording.bagio import cdr_header
 from activesurv_sim.board import BoardFixture
-from activesurv_sim.conversions import TABLE_ID, TABLE_JOINTS
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
 Progress = Callable[[str], None]
 SPEEDS = (0.02, 0.05)  # m/s of the table's passes

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import yaml
@@ -38,8 +38,10 @@ from activesurv_hardware.hardware_file import (
     template_text,
 )
 from activesurv_hardware.schema import hardware_problems, json_schema, layout_problems
-from activesurv_sim.xytable import TABLE_RANGE
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS, TABLE_RANGE
 from activesurv_stages.config import motion_class
+from activesurv_stages.errors import StageError
+from activesurv_stages.readout import read_positions
 
 
 def paper_rig(name: str = 'paper-lab', namespace: str = '') -> TemplateRig:
@@ -148,9 +150,34 @@ def calibration_dir(hw: Hardware, calibration: str | None) -> Path:
     return hw.calibration
 
 
-def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
-    """What a hardware run or commissioning will move, axis by axis (SI), before it moves."""
+def current_positions(hw: Hardware) -> tuple[dict[str, float], list[str]]:
+    """Every joint's position now, read from its controller without moving it; and a line per
+    controller that could not be read (the bridges are not up yet: the ports are free)."""
+    positions: dict[str, float] = {}
+    unread = []
+    controllers = [(cid, c.stages) for cid, c in hw.cameras.items()]
+    controllers.append((TABLE_ID, hw.table))
+    for name, config in controllers:
+        if config is None:
+            continue
+        try:
+            positions.update(read_positions(config))
+        except StageError as exc:
+            unread.append(f'{name}: positions not read ({exc})')
+    return positions, unread
+
+
+def motion_plan(
+    hw: Hardware, command: str, home: bool, positions: Mapping[str, float] | None = None
+) -> list[str]:
+    """What a hardware run or commissioning will move, axis by axis (SI), before it moves;
+    from where each stands when ``positions`` has it."""
     setup = load_setup(hardware_layout(hw), motion='fast')
+    at = dict(positions or {})
+
+    def where(joint: str, unit: str) -> str:
+        return f'{at[joint]:+.4f} {unit}' if joint in at else 'where it stands'
+
     lines = []
     if home:
         lines.append('first: every axis without a reference position homes (--home)')
@@ -164,11 +191,13 @@ def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
             unit = 'm' if kind == 'linear' else 'rad'
             if command in ('commission', 'measure-delay'):
                 lines.append(
-                    f'{joint}: over its range {lim.min_position:+.4f} .. '
-                    f'{lim.max_position:+.4f} {unit} (board stations)'
+                    f'{joint}: from {where(joint, unit)} over its range '
+                    f'{lim.min_position:+.4f} .. {lim.max_position:+.4f} {unit} (board stations)'
                 )
             else:
-                lines.append(f'{joint}: from where it stands to {q:+.4f} {unit}, then dispatched')
+                lines.append(
+                    f'{joint}: from {where(joint, unit)} to {q:+.4f} {unit}, then dispatched'
+                )
     if hw.table is not None:
         g = hw.geometry
         what = (
@@ -178,9 +207,14 @@ def motion_plan(hw: Hardware, command: str, home: bool) -> list[str]:
             if command == 'measure-delay'
             else 'the experiment path'
         )
+        start = (
+            f'from ({at[TABLE_JOINTS[0]]:.4f}, {at[TABLE_JOINTS[1]]:.4f}) m '
+            if all(j in at for j in TABLE_JOINTS)
+            else ''
+        )
         lines.append(
-            f'table_x, table_y: along {what} within x {g.table_x[0]:g}..{g.table_x[1]:g} m, '
-            f'y {g.table_y[0]:g}..{g.table_y[1]:g} m'
+            f'table_x, table_y: {start}along {what} within x {g.table_x[0]:g}..'
+            f'{g.table_x[1]:g} m, y {g.table_y[0]:g}..{g.table_y[1]:g} m'
         )
     return lines
 
@@ -192,8 +226,10 @@ def confirm_motion(
     home: bool,
     ask: Callable[[str], str] = input,
     say: Callable[[str], None] = print,
+    read: Callable[[], tuple[dict[str, float], list[str]]] | None = None,
 ) -> None:
-    """List what will move and ask before the first motion (``--yes`` skips the question).
+    """List what will move, from where it stands (``read``: default, each controller read once,
+    nothing moved), and ask before the first motion (``--yes`` skips the question).
 
     Raises:
         ConfigError: if the answer is not yes, or there is no terminal to ask at.
@@ -205,8 +241,14 @@ def confirm_motion(
             f'activesurv {command} --hardware moves the stages of {hw.name}: with no terminal '
             'to ask at, confirm with --yes'
         )
+    if read is None:
+
+        def read() -> tuple[dict[str, float], list[str]]:
+            return current_positions(hw)
+
     say(f'activesurv {command} will move these axes of {hw.name} ({hw.path}):')
-    for line in motion_plan(hw, command, home):
+    positions, unread = read()
+    for line in [*motion_plan(hw, command, home, positions), *unread]:
         say(f'  {line}')
     answer = ask('Move them? Stop at any time with Ctrl-C or activesurv stop. [y/N] ')
     if answer.strip().lower() not in ('y', 'yes'):

@@ -48,8 +48,8 @@ from activesurv_common.trigger import Trigger
 from activesurv_dispatch.sensors import Sensor, Setup, load_setup
 from activesurv_hardware.hardware_file import load_hardware
 from activesurv_launch.launcher import Launcher, NodeSpec
-from activesurv_sim.conversions import DRIVER_UP, TABLE_ID, TABLE_JOINTS
-from activesurv_sim.xytable import TABLE_RANGE
+from activesurv_sim.conversions import DRIVER_UP
+from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS, TABLE_RANGE
 from activesurv_stages.config import motion_class
 from activesurv_stages.emulators import (
     EmulatorBase,

@@ -26,7 +26,7 @@ from std_msgs.msg import Bool
 from activesurv_common.ros import qos, topics
 from activesurv_hardware.errors import HardwareError
 from activesurv_hardware.hardware_file import Hardware
-from activesurv_sim.conversions import TABLE_ID
+from activesurv_sim.xytable import TABLE_ID
 
 
 class EstopError(HardwareError):

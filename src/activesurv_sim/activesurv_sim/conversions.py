@@ -75,12 +75,13 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
             xy = state[:2] + (offset(float(state[0]), float(state[1])) if offset else 0.0)
             return fixture.scene(xy)
 
+    optics = None  # without a rig: a pinhole's frames
     if rig is not None:
         if camera_id == 'overhead':
-            model, mount = rig.overhead, rig.overhead_pose
+            model, mount, optics = rig.overhead, rig.overhead_pose, rig.overhead_lens
         else:
             rc = rig.camera(camera_id)
-            model, mount = rc.camera, rc.true_mount()
+            model, mount, optics = rc.camera, rc.true_mount(), rc.lens
     elif p['intrinsics_file']:
         model = CameraModel.load(str(p['intrinsics_file']))
     elif p['camera_type'] == 'overhead':
@@ -104,6 +105,7 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
         int(p['seed']),
         scene_of,
         rig.obstacles if rig is not None else (),
+        optics,
     )
 
 

@@ -12,7 +12,9 @@ in front of a uniform background. Two ways to anti-alias the edges (``SensorNois
 * ``supersample``: pixels on an edge (a neighbour has another label) are re-rendered with
   ``supersample x supersample`` rays (float64); slower, kept as the reference.
 
-Then the image is blurred (lens) and photon shot noise and read noise are added and it is
+Then the lens and shutter act (:class:`FrameOptics`: a motion streak over the exposure, the lens's
+blur with the depth of field's, the exposure's gain), photon shot noise and read noise are added
+to the linear levels, the camera's response (gamma) applied, and it is
 quantised to 8 bits, all only inside the plates' region (plus the blur's reach). Outside it the
 frame is uniform background, so its noisy pixels are taken as a window at a random offset of a
 pool of noisy background drawn once per renderer. Inside, the per-pixel noise (its standard
@@ -25,6 +27,7 @@ frame's noise has the right distribution. Everything random comes from a seeded
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -157,6 +160,66 @@ class SensorNoise:
 
 
 @dataclass(frozen=True)
+class FrameOptics:
+    """What the lens and the shutter do to one frame (:mod:`activesurv_sim.optics`).
+
+    Attributes:
+        defocus_sigma: the depth of field's blur (px, per axis), in quadrature with the lens's
+            own ``SensorNoise.blur_sigma``.
+        streak: the marker's image displacement over the exposure (px, u and v): the frame is
+            smeared along it (motion blur).
+        gain: grey levels relative to the renderer's (exposure time / reference).
+        gamma: the response, ``grey = 255 (radiance / full scale)^(1 / gamma)``.
+    """
+
+    defocus_sigma: float = 0.0
+    streak: tuple[float, float] = (0.0, 0.0)
+    gain: float = 1.0
+    gamma: float = 1.0
+
+    def blur(self, base: float) -> float:
+        return math.hypot(base, self.defocus_sigma)
+
+    @property
+    def streak_length(self) -> float:
+        return math.hypot(*self.streak)
+
+
+IDEAL_OPTICS = FrameOptics()
+
+
+def _streaked(img: NDArray[np.float32], streak: tuple[float, float]) -> NDArray[np.float32]:
+    """``img`` smeared uniformly along the image vector ``streak`` (px), centred: the shutter
+    open while the marker moved that far."""
+    length = math.hypot(*streak)
+    if length < 0.5:
+        return img
+    r = math.ceil(length / 2.0) + 1
+    kernel = np.zeros((2 * r + 1, 2 * r + 1), dtype=np.float32)
+    n = max(2, math.ceil(4.0 * length))
+    for k in np.linspace(-0.5, 0.5, n):
+        x, y = r + k * streak[0], r + k * streak[1]
+        x0, y0 = math.floor(x), math.floor(y)
+        fx, fy = x - x0, y - y0
+        kernel[y0, x0] += (1 - fx) * (1 - fy)
+        kernel[y0, x0 + 1] += fx * (1 - fy)
+        kernel[y0 + 1, x0] += (1 - fx) * fy
+        kernel[y0 + 1, x0 + 1] += fx * fy
+    kernel /= kernel.sum()
+    return np.asarray(
+        cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REPLICATE), dtype=np.float32
+    )
+
+
+def _encode(img: NDArray[np.float32], gamma: float) -> NDArray[np.float32]:
+    """Linear levels through the camera's response (gamma 1: unchanged)."""
+    if gamma == 1.0:
+        return img
+    x = np.clip(img, np.float32(0.0), np.float32(255.0)) / np.float32(255.0)
+    return np.asarray(np.float32(255.0) * x ** np.float32(1.0 / gamma), dtype=np.float32)
+
+
+@dataclass(frozen=True)
 class Scene:
     plates: tuple[Plate, ...]
     background: float = BACKGROUND
@@ -250,7 +313,7 @@ class Renderer:
         uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
         self._rays = camera.rays(np.column_stack([uu.ravel(), vv.ravel()])).reshape(h, w, 3)
         self._rays32 = np.ascontiguousarray(self._rays, dtype=np.float32)
-        self._pools: dict[tuple[float, float, float], NDArray[np.uint8]] = {}
+        self._pools: dict[tuple[float, float, float, float], NDArray[np.uint8]] = {}
         self._pool_normals: NDArray[np.float32] | None = None
 
     def _plate_box(self, plate: Plate, T: Transform) -> tuple[int, int, int, int] | None:
@@ -279,6 +342,7 @@ class Renderer:
         scene: Scene,
         noise: SensorNoise | None = None,
         rng: np.random.Generator | None = None,
+        optics: FrameOptics = IDEAL_OPTICS,
     ) -> NDArray[np.uint8]:
         """See :func:`render`."""
         noise = SensorNoise() if noise is None else noise
@@ -297,15 +361,32 @@ class Renderer:
         ]
         gx, gy = scene.ambient_gradient
         if noise.antialias == 'coverage' and not (gx or gy):
-            return self._render_coverage(T_world_camera, scene, noise, rng, boxes)
+            return self._render_coverage(T_world_camera, scene, noise, rng, boxes, optics)
         img = self._supersampled(T_world_camera, scene, noise, boxes)
         if gx or gy:
             h, w = img.shape
             uu, vv = np.meshgrid(np.arange(w) / w - 0.5, np.arange(h) / h - 0.5)
             img = img + gx * uu + gy * vv
-        if noise.blur_sigma > 0.0:
-            img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float64)
-        return _expose(img.astype(np.float32), noise, rng)
+        return _expose(
+            self._through_optics(img.astype(np.float32), noise, optics),
+            noise,
+            rng,
+            None,
+            optics.gamma,
+        )
+
+    @staticmethod
+    def _through_optics(
+        img: NDArray[np.float32], noise: SensorNoise, optics: FrameOptics
+    ) -> NDArray[np.float32]:
+        """Motion streak, lens and defocus blur, exposure gain: linear levels still."""
+        img = _streaked(img, optics.streak)
+        sigma = optics.blur(noise.blur_sigma)
+        if sigma > 0.0:
+            img = np.asarray(cv2.GaussianBlur(img, (0, 0), sigma), dtype=np.float32)
+        if optics.gain != 1.0:
+            img = img * np.float32(optics.gain)
+        return img
 
     # -- coverage (default) --------------------------------------------------------------
     def _render_coverage(
@@ -315,12 +396,14 @@ class Renderer:
         noise: SensorNoise,
         rng: np.random.Generator,
         boxes: list[tuple[int, tuple[int, int, int, int]]],
+        optics: FrameOptics = IDEAL_OPTICS,
     ) -> NDArray[np.uint8]:
         cam = self.camera
-        out = self._background(scene.background, noise, rng)
+        out = self._background(scene.background * optics.gain, noise, rng, optics.gamma)
         if not boxes:
             return out
-        m = int(np.ceil(4.0 * noise.blur_sigma)) + 2  # the blur's reach beyond the plates
+        # The blur's and the streak's reach beyond the plates.
+        m = int(np.ceil(4.0 * optics.blur(noise.blur_sigma) + optics.streak_length)) + 2
         U0 = max(min(b[0] for _, b in boxes) - m, 0)
         U1 = min(max(b[1] for _, b in boxes) + m, cam.width)
         V0 = max(min(b[2] for _, b in boxes) - m, 0)
@@ -343,9 +426,8 @@ class Renderer:
             img[win] += take * lev
             left[win] -= take
         img += left * bg
-        if noise.blur_sigma > 0.0:
-            img = np.asarray(cv2.GaussianBlur(img, (0, 0), noise.blur_sigma), dtype=np.float32)
-        out[V0:V1, U0:U1] = _expose(img, noise, rng, self._normals(img.size, rng))
+        img = self._through_optics(img, noise, optics)
+        out[V0:V1, U0:U1] = _expose(img, noise, rng, self._normals(img.size, rng), optics.gamma)
         return out
 
     def _cover(
@@ -392,17 +474,19 @@ class Renderer:
         return self._pool_normals[off : off + n]
 
     def _background(
-        self, level: float, noise: SensorNoise, rng: np.random.Generator
+        self, level: float, noise: SensorNoise, rng: np.random.Generator, gamma: float = 1.0
     ) -> NDArray[np.uint8]:
         """A noisy uniform frame: a window at a random offset of a pool drawn once."""
         h, w = self.camera.height, self.camera.width
-        key = (float(level), noise.electrons_per_level, noise.read_noise)
+        key = (float(level), noise.electrons_per_level, noise.read_noise, float(gamma))
         pool = self._pools.get(key)
         extra = 64 * w
         if pool is None:
             flat = np.full(h * w + extra, level, dtype=np.float32)
-            pool = _expose(flat, noise, rng)
-            self._pools = {key: pool}  # one background per camera in practice
+            pool = _expose(flat, noise, rng, None, gamma)
+            if len(self._pools) >= 4:  # a camera has one exposure: a few levels at most
+                self._pools.clear()
+            self._pools[key] = pool
         off = int(rng.integers(0, extra + 1))
         return pool[off : off + h * w].reshape(h, w).copy()
 
@@ -572,8 +656,10 @@ def _expose(
     noise: SensorNoise,
     rng: np.random.Generator,
     normals: NDArray[np.float32] | None = None,
+    gamma: float = 1.0,
 ) -> NDArray[np.uint8]:
-    """Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise, quantised.
+    """Shot noise (Poisson in electrons, here >1000 e-: Gaussian) and read noise on the linear
+    levels, then the camera's response (``gamma``), quantised.
 
     ``normals``: standard normal draws to use (as many as pixels), else drawn from ``rng``.
     """
@@ -585,6 +671,7 @@ def _expose(
         img = np.asarray(
             cv2.add(img, cv2.multiply(cv2.sqrt(var), z.reshape(img.shape))), dtype=np.float32
         )
+    img = _encode(img, gamma)
     # Saturating, rounding conversion (negative levels are clipped to 0 first).
     return np.asarray(cv2.convertScaleAbs(np.maximum(img, np.float32(0.0))), dtype=np.uint8)
 
@@ -595,6 +682,7 @@ def render(
     scene: Scene,
     noise: SensorNoise | None = None,
     rng: np.random.Generator | None = None,
+    optics: FrameOptics = IDEAL_OPTICS,
 ) -> NDArray[np.uint8]:
     """Render an 8-bit grey image of ``scene`` seen by ``camera`` at ``T_world_camera``.
 
@@ -605,11 +693,13 @@ def render(
         noise: image formation; ``None`` for the defaults, ``SensorNoise(0, 0, 0)`` for an ideal
             noise-free (but still anti-aliased and quantised) image.
         rng: random generator for the noise (seed it for reproducible images).
+        optics: depth of field, motion streak, exposure and response of this frame (default:
+            a pinhole's: none).
 
     Returns:
         (height, width) uint8 image. For many frames of one camera keep a :class:`Renderer`.
     """
-    return Renderer(camera).render(T_world_camera, scene, noise, rng)
+    return Renderer(camera).render(T_world_camera, scene, noise, rng, optics)
 
 
 def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> Transform:

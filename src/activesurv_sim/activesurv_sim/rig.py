@@ -46,6 +46,7 @@ from activesurv_common.geometry import Transform, rot_x, rot_y, rot_z
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
 from activesurv_common.occlusion import Obstacle, obstacles_from_list, obstacles_to_list
 from activesurv_sim.errors import SimError
+from activesurv_sim.optics import OVERHEAD_FOCAL_LENGTH, Optics, OpticsError, focus_for
 from activesurv_sim.rig_schema import rig_problems
 
 Array = NDArray[np.float64]
@@ -145,6 +146,12 @@ class RigCamera:
     linear_accuracy: float = LINEAR_ACCURACY
     rotary_accuracy: float = ROTARY_ACCURACY
     error_seed: int = 0
+    optics: Optics | None = None  # None: the paper's, focused at the table's middle
+
+    @property
+    def lens(self) -> Optics:
+        """Its optics (the default focused from where its mount stands)."""
+        return self.optics if self.optics is not None else focus_for(self.mount.base)
 
     def true_mount(self) -> TrueMount:
         m = self.mount
@@ -192,6 +199,14 @@ class Rig:
     table_seed: int = 0
     seed: int | None = None
     obstacles: tuple[Obstacle, ...] = ()
+    overhead_optics: Optics | None = None  # None: the paper's 12 mm lens, focused on the table
+
+    @property
+    def overhead_lens(self) -> Optics:
+        """The overhead camera's optics."""
+        if self.overhead_optics is not None:
+            return self.overhead_optics
+        return focus_for(self.overhead_pose.t, OVERHEAD_FOCAL_LENGTH)
 
     def camera(self, camera_id: str) -> RigCamera:
         try:
@@ -209,10 +224,14 @@ class Rig:
         )
 
     def truth(self) -> Calibration:
-        """The rig as a calibration: what a perfect commissioning would find."""
+        """The rig as a calibration: what a perfect commissioning would find (the cameras'
+        response and exposure time included)."""
         return Calibration(
             f'truth of {self.name}',
-            {c: rc.camera for c, rc in self.cameras.items()},
+            {
+                c: replace(rc.camera, gamma=rc.lens.gamma, exposure_time=rc.lens.exposure_time)
+                for c, rc in self.cameras.items()
+            },
             {c: rc.mount for c, rc in self.cameras.items()},
             self.overhead,
             self.overhead_pose,
@@ -305,6 +324,7 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
     for cid, rc in rig.cameras.items():
         cams[cid] = {
             'camera_info': rc.camera.to_dict(),
+            'optics': rc.lens.to_dict(),
             'mount': mount_to_dict(rc.mount),
             'stage_accuracy': {
                 'linear': float(rc.linear_accuracy),
@@ -317,6 +337,7 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         'cameras': cams,
         'overhead': {
             'camera_info': rig.overhead.to_dict(),
+            'optics': rig.overhead_lens.to_dict(),
             'pose': pose_to_list(rig.overhead_pose),
         },
         'xy_table': {
@@ -370,6 +391,7 @@ def rig_from_dict(data: Any, defaults: Mapping[str, CameraMount] | None = None) 
                 _positive(acc.get('linear', LINEAR_ACCURACY), f'{cid} linear accuracy'),
                 _positive(acc.get('rotary', ROTARY_ACCURACY), f'{cid} rotary accuracy'),
                 int(acc.get('seed', len(cameras) + 1)),
+                _optics(entry.get('optics'), focus_for(mount.base), cid),
             )
         over = dict(data.get('overhead') or {})
         overhead = CameraModel.from_dict(
@@ -383,6 +405,10 @@ def rig_from_dict(data: Any, defaults: Mapping[str, CameraMount] | None = None) 
             raise RigError(f'xy_table.accuracy needs [x, y], got {acc_xy!r}')
         meta = dict(data.get('rig') or {})
         seed = meta.get('seed')
+        pose = pose_from_list(over['pose'], 'overhead.pose')
+        over_optics = _optics(
+            over.get('optics'), focus_for(pose.t, OVERHEAD_FOCAL_LENGTH), 'overhead'
+        )
         return Rig(
             str(meta.get('name', 'rig')),
             cameras,
@@ -392,11 +418,24 @@ def rig_from_dict(data: Any, defaults: Mapping[str, CameraMount] | None = None) 
             int(table.get('seed', 0)),
             None if seed is None else int(seed),
             obstacles_from_list(data.get('obstacles')),
+            over_optics,
         )
     except (CalibrationError, TypeError, ValueError) as exc:
         if isinstance(exc, RigError):
             raise
         raise RigError(f'malformed rig: {exc}') from exc
+
+
+def _optics(data: Any, default: Optics, where: str) -> Optics:
+    """A camera's ``optics`` section over its default.
+
+    Raises:
+        RigError: for a value out of range.
+    """
+    try:
+        return Optics.from_dict(dict(data) if data else None, default)
+    except OpticsError as exc:
+        raise RigError(f'{where}: {exc}') from exc
 
 
 def save_rig(rig: Rig, path: Path) -> None:

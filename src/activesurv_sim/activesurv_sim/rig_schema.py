@@ -40,14 +40,33 @@ class StageAccuracy(StrictModel):
     seed: int | None = Field(None, ge=0)
 
 
+class OpticsSection(StrictModel):
+    """A camera's lens and exposure (keys left out: the paper's, f/4 at 10 ms, linear,
+    focused at the table's middle as seen from the camera)."""
+
+    f_number: float | None = Field(None, ge=0.7, le=64.0, description='aperture f-number')
+    focus_distance: float | None = Field(
+        None, ge=0.05, le=100.0, description='distance the lens is focused at [m]'
+    )
+    exposure_time: float | None = Field(
+        None, ge=1e-5, le=0.5, description='time the shutter is open [s]'
+    )
+    gamma: float | None = Field(
+        None, ge=0.2, le=5.0, description='response: grey = 255 (radiance/full)^(1/gamma)'
+    )
+    focal_length: float | None = Field(None, ge=0.001, le=0.5, description='of the lens [m]')
+
+
 class RigCamera(StrictModel):
     camera_info: dict[str, Any] | None = None
+    optics: OpticsSection | None = None
     mount: MountSection | None = None
     stage_accuracy: StageAccuracy | None = None
 
 
 class RigOverhead(StrictModel):
     camera_info: dict[str, Any] | None = None
+    optics: OpticsSection | None = None
     pose: tuple[float, float, float, float, float, float, float] = Field(
         description='x, y, z [m], qx, qy, qz, qw of the overhead camera (world frame)'
     )

@@ -30,7 +30,8 @@ from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import Box, Obstacle
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.errors import RenderError
-from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
+from activesurv_sim.optics import Optics, frame_optics
+from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise
 
 EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked
 TABLE_MAX_RATE = 1.0  # m/s: faster than any table moves an object (a jump: entering, parking)
@@ -129,11 +130,15 @@ class SimulatedCamera:
         seed: int = 0,
         scene_of: Callable[[NDArray[np.float64]], Scene] | None = None,
         obstacles: Sequence[Obstacle] = (),
+        optics: Optics | None = None,
     ) -> None:
         """``scene_of(state)``: the scene of a state 9-vector (default: the object's markers,
         :func:`object_scene`; commissioning: the boards on the carriage); ``obstacles``: the
-        cell's solids, drawn in every frame."""
+        cell's solids, drawn in every frame; ``optics``: the lens and the exposure (depth of
+        field, motion streak, exposure, response: :mod:`activesurv_sim.optics`; None: a
+        pinhole's frames)."""
         self.camera = camera
+        self.optics = optics
         self.scene_of = scene_of
         self.extra = obstacle_plates(obstacles)
         self.renderer = Renderer(camera)
@@ -205,14 +210,25 @@ class SimulatedCamera:
         )
 
     def plan(
-        self, t: float, state: ArrayLike | None = None, q: ArrayLike | None = None, slot: int = 0
+        self,
+        t: float,
+        state: ArrayLike | None = None,
+        q: ArrayLike | None = None,
+        slot: int = 0,
+        velocity: ArrayLike | None = None,
+        q_rate: ArrayLike | None = None,
     ) -> None:
-        """The object state (9,) of lane ``slot`` and/or stage joints planned for ``t``."""
-        states, joints = self._planned.setdefault(t, ({}, [None]))
+        """The object state (9,) of lane ``slot`` and/or stage joints planned for ``t``, with
+        the object's velocity (m/s) and the joints' rates if known (the exposure's streak)."""
+        states, joints = self._planned.setdefault(t, ({}, [None, None, None]))
         if state is not None:
             states[slot] = np.asarray(state, dtype=np.float64).reshape(9)
+            if slot == 0 and velocity is not None:
+                joints[1] = np.asarray(velocity, dtype=np.float64).reshape(3)
         if q is not None:
             joints[0] = np.asarray(q, dtype=np.float64).reshape(-1)
+            if q_rate is not None:
+                joints[2] = np.asarray(q_rate, dtype=np.float64).reshape(-1)
         if len(self._planned) > 64:  # requests whose instant never came: keep the newest
             for old in sorted(self._planned)[:-64]:
                 del self._planned[old]
@@ -221,14 +237,20 @@ class SimulatedCamera:
         """Render the frame of ``t`` now if its truth is planned; True if a frame is ready."""
         if t in self._ahead:
             return True
-        states, joints = self._planned.get(t, ({}, [None]))
-        q = joints[0]
+        states, joints = self._planned.get(t, ({}, [None, None, None]))
+        q, velocity, q_rate = joints
         static = not isinstance(self.mount, CameraMount)
         if set(states) != set(self.slots) or (q is None and not static):
             return False
         state = np.concatenate([states[k] for k in sorted(self.slots)])
         q_used = np.zeros(0) if static or q is None else q
-        self._ahead[t] = (self.render_state(state, q_used), state, q_used)
+        rates = None
+        if velocity is not None:
+            rate = np.zeros_like(state)
+            rate[0:3] = rate[3:6] = velocity  # the carriage carries both markers
+            q_dot = np.zeros_like(q_used) if q_rate is None or static else q_rate
+            rates = (rate, q_dot)
+        self._ahead[t] = (self.render_state(state, q_used, rates), state, q_used)
         return True
 
     def frame_at(self, t: float, hold: float = 0.2) -> tuple[NDArray[np.uint8], bool]:
@@ -248,7 +270,50 @@ class SimulatedCamera:
                 q0, q, rtol=0.0, atol=1e-6
             ):
                 return frame, True
-        return self.render_state(state, q), False
+        return self.render_state(state, q, self.rates_at(t, hold)), False
+
+    def rates_at(
+        self, t: float, hold: float = 0.2
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The state's and the joints' rates of change around ``t`` over the exposure (from the
+        states on either side; None without optics or without them)."""
+        if self.optics is None:
+            return None
+        h = self.optics.exposure_time / 2.0
+        try:
+            a, qa = self.truth_at(t - h, hold)
+            b, qb = self.truth_at(t + h, hold)
+        except RenderError:
+            return None
+        if a.shape != b.shape or qa.shape != qb.shape:
+            return None
+        return (b - a) / (2.0 * h), (qb - qa) / (2.0 * h)
+
+    def frame_optics(
+        self,
+        state: NDArray[np.float64],
+        q: NDArray[np.float64],
+        rates: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> FrameOptics:
+        """What the lens and the shutter do to the frame of ``state`` and joints ``q``: the
+        depth of field's blur at the marker's distance (the side marker for a camera on
+        stages, the top marker overhead) and its streak over the exposure."""
+        marker = slice(0, 3) if not isinstance(self.mount, CameraMount) else slice(3, 6)
+        p = np.asarray(state[marker], dtype=np.float64)
+        ends = None
+        if rates is not None and self.optics is not None:
+            h = self.optics.exposure_time / 2.0
+            q_dot = rates[1] if len(q) else np.zeros_like(q)
+            ends = (
+                (self._pose(q - h * q_dot), p - h * rates[0][marker]),
+                (self._pose(q + h * q_dot), p + h * rates[0][marker]),
+            )
+        return frame_optics(self.camera, self.optics, self._pose(q), p, ends)
+
+    def _pose(self, q: NDArray[np.float64]) -> Transform:
+        if isinstance(self.mount, CameraMount):
+            return self.mount.pose_from_joints(np.asarray(q, dtype=np.float64))
+        return self.mount
 
     def truth_at(
         self, t: float, hold: float = 0.2
@@ -277,12 +342,16 @@ class SimulatedCamera:
             raise RenderError(f'no stage state near t={t:.3f} s')
         return state, q
 
-    def render_state(self, state: ArrayLike, q: ArrayLike) -> NDArray[np.uint8]:
-        """The frame of the object in ``state`` (9,) with the stage at joints ``q``."""
-        if isinstance(self.mount, CameraMount):
-            T = self.mount.pose_from_joints(np.asarray(q, dtype=np.float64))
-        else:
-            T = self.mount
+    def render_state(
+        self,
+        state: ArrayLike,
+        q: ArrayLike,
+        rates: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> NDArray[np.uint8]:
+        """The frame of the object in ``state`` (9,) with the stage at joints ``q``; ``rates``
+        (of the state and the joints) streak it over the exposure."""
+        q = np.asarray(q, dtype=np.float64)
+        T = self._pose(q)
         s = np.asarray(state, dtype=np.float64)
         if self.scene_of is None:
             objects = s.reshape(-1, 9)
@@ -291,7 +360,8 @@ class SimulatedCamera:
         else:
             scene = self.scene_of(s)
             scene = replace(scene, plates=scene.plates + self.extra)
-        return self.renderer.render(T, scene, self.noise, self.rng)
+        optics = self.frame_optics(s, q, rates)
+        return self.renderer.render(T, scene, self.noise, self.rng, optics)
 
     def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:
         """The frame exposed at ``t`` (rendered now).
@@ -299,4 +369,4 @@ class SimulatedCamera:
         Raises:
             RenderError: if the object or stage state at ``t`` is unknown.
         """
-        return self.render_state(*self.truth_at(t, hold))
+        return self.render_state(*self.truth_at(t, hold), self.rates_at(t, hold))

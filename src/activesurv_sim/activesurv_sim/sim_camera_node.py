@@ -135,17 +135,28 @@ class SimCameraNode(Node):
 
     def _on_planned_object(self, msg: ObjectState) -> None:
         t, state = time_to_sec(msg.header.stamp), object_state_vector(msg)
-        self._ahead(t, state=state, slot=int(msg.slot))
+        v = msg.velocity
+        self._ahead(t, state=state, slot=int(msg.slot), velocity=[v.x, v.y, v.z])
 
     def _on_planned_joints(self, msg: JointState) -> None:
         q = joint_vector(msg, self.sim.joint_names)
         if q is not None:
-            self._ahead(time_to_sec(msg.header.stamp), q=q)
+            rate = list(msg.velocity) if len(msg.velocity) == len(msg.name) == len(q) else None
+            self._ahead(time_to_sec(msg.header.stamp), q=q, q_rate=rate)
 
-    def _ahead(self, t: float, state: Any = None, q: Any = None, slot: int = 0) -> None:
-        """Plan the truth at ``t``; render its frame now if it is requested and planned."""
+    def _ahead(
+        self,
+        t: float,
+        state: Any = None,
+        q: Any = None,
+        slot: int = 0,
+        velocity: Any = None,
+        q_rate: Any = None,
+    ) -> None:
+        """Plan the truth at ``t`` (and its rates: the exposure's streak); render its frame now
+        if it is requested and planned."""
         if state is not None or q is not None:
-            self.sim.plan(t, state, q, slot)
+            self.sim.plan(t, state, q, slot, velocity, q_rate)
         if t in self._pending:
             try:
                 self.sim.render_ahead(t)

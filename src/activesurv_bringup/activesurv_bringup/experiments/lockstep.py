@@ -28,6 +28,8 @@ from numpy.typing import NDArray
 from activesurv_bringup.errors import ConfigError
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.faults import Fault, FaultKind
+from activesurv_common.camera_model import CameraModel
+from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import Obstacle, sight_blocked
@@ -42,7 +44,8 @@ from activesurv_fusion.config import FusionConfig
 from activesurv_imaging.capture import CaptureCore
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.session import PredictionSession
-from activesurv_sim.render import Renderer, SensorNoise
+from activesurv_sim.optics import Optics, frame_optics
+from activesurv_sim.render import IDEAL_OPTICS, FrameOptics, Renderer, SensorNoise
 from activesurv_sim.sim_camera import object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator
@@ -57,15 +60,39 @@ class _Camera:
     renderer: Renderer  # the true optics
     mount: CameraMount  # the true mount (with the rig's stage errors)
     imager: CaptureCore[NDArray[np.uint8]]  # what the system believes
+    lens: Optics | None = None  # depth of field, exposure, response (None: a pinhole)
     first_frame: NDArray[np.uint8] | None = None
 
     def joints(self, t: float) -> Array:
         return np.array([ax.state(t)[0] for ax in self.axes])
 
+    def pose(self, t: float) -> Transform:
+        """Where the camera really is at ``t``."""
+        return self.mount.pose_from_joints(self.joints(t))
+
 
 def _state_vector(exp: Experiment, t: float) -> Array:
     s = exp.table().state(t)
     return np.concatenate([s.top, s.side, s.side_normal])
+
+
+def _optics(
+    exp: Experiment,
+    camera: CameraModel,
+    lens: Optics | None,
+    pose_at: Callable[[float], Transform],
+    marker: slice,
+    t: float,
+) -> FrameOptics:
+    """What the lens and the shutter do to a frame exposed around ``t`` (centred): the depth
+    of field at the marker's distance, its streak from the camera's and the object's motion."""
+    if lens is None:
+        return IDEAL_OPTICS
+    h = lens.exposure_time / 2.0
+    ends = tuple((pose_at(u), _state_vector(exp, u)[marker]) for u in (t - h, t + h))
+    return frame_optics(
+        camera, lens, pose_at(t), _state_vector(exp, t)[marker], (ends[0], ends[1])
+    )
 
 
 def run_lockstep(
@@ -95,6 +122,7 @@ def run_lockstep(
     true_over, T_over = exp.overhead(truth=True)
     over_cam, T_over_believed = exp.overhead(truth=False)
     over_renderer = Renderer(true_over)
+    over_lens = exp.rig.rig.overhead_lens if exp.rig is not None else None
     # The same session core as the predictor node.
     session = PredictionSession(exp.predictor_config())
     tracker = session.tracker
@@ -117,7 +145,10 @@ def run_lockstep(
     for step in range(n_steps):
         t = step * dt
         state = _state_vector(exp, t)
-        img = over_renderer.render(T_over, object_scene(state, geometry, fixtures), noise, rng)
+        lens = _optics(exp, true_over, over_lens, lambda _: T_over, slice(0, 3), t)
+        img = over_renderer.render(
+            T_over, object_scene(state, geometry, fixtures), noise, rng, lens
+        )
         fix = overhead_fix(
             img, over_cam, T_over_believed, exp.object_model.top_height, exp.setup.marker_radius
         )
@@ -174,6 +205,7 @@ def _cameras(exp: Experiment, by_cam: dict[str, Fault], dead: set[str]) -> dict[
                 _identity,
                 s.camera,
             ),
+            exp.rig.rig.camera(s.camera_id).lens if exp.rig is not None else None,
         )
         for s in exp.setup.sensors
         if s.camera_id not in dead
@@ -251,7 +283,8 @@ def _capture(
             )[0]
         ):
             occluded.append(cid)
-        img = cam.renderer.render(T, scene, noise, rng)
+        lens = _optics(exp, cam.renderer.camera, cam.lens, cam.pose, slice(3, 6), tj)
+        img = cam.renderer.render(T, scene, noise, rng, lens)
         fault = faults.get(cid)
         if fault is not None and fault.kind is FaultKind.FROZEN:
             if cam.first_frame is None:

@@ -291,24 +291,35 @@ class SimulatedCamera:
 
     def frame_optics(
         self,
-        state: NDArray[np.float64],
+        plates: Sequence[Plate],
         q: NDArray[np.float64],
         rates: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ) -> FrameOptics:
-        """What the lens and the shutter do to the frame of ``state`` and joints ``q``: the
-        depth of field's blur at the marker's distance (the side marker for a camera on
-        stages, the top marker overhead) and its streak over the exposure."""
-        marker = slice(0, 3) if not isinstance(self.mount, CameraMount) else slice(3, 6)
-        p = np.asarray(state[marker], dtype=np.float64)
+        """What the lens and the shutter do to a frame of ``plates`` (the object's or the
+        boards, obstacles apart) with the stage at joints ``q``: the depth of field's blur at
+        the distance of the plate the camera looks at (the nearest to its optical axis) and
+        that plate's streak over the exposure (the carriage's rate, ``rates[0][:3]``, and the
+        joints', ``rates[1]``)."""
+        T = self._pose(q)
+        if self.optics is None or not plates:
+            return frame_optics(self.camera, None, T, T.t)
+        axis = T.R[:, 2]
+
+        def off_axis(plate: Plate) -> float:
+            d = plate.center - T.t
+            return float(-(d @ axis) / (np.linalg.norm(d) + 1e-12))
+
+        p = min(plates, key=off_axis).center
         ends = None
-        if rates is not None and self.optics is not None:
+        if rates is not None:
             h = self.optics.exposure_time / 2.0
+            v = rates[0][0:3]
             q_dot = rates[1] if len(q) else np.zeros_like(q)
             ends = (
-                (self._pose(q - h * q_dot), p - h * rates[0][marker]),
-                (self._pose(q + h * q_dot), p + h * rates[0][marker]),
+                (self._pose(q - h * q_dot), p - h * v),
+                (self._pose(q + h * q_dot), p + h * v),
             )
-        return frame_optics(self.camera, self.optics, self._pose(q), p, ends)
+        return frame_optics(self.camera, self.optics, T, p, ends)
 
     def _pose(self, q: NDArray[np.float64]) -> Transform:
         if isinstance(self.mount, CameraMount):
@@ -357,10 +368,12 @@ class SimulatedCamera:
             objects = s.reshape(-1, 9)
             plates = [p for o in objects for p in object_scene(o, self.geometry).plates]
             scene = Scene((*plates, *self.extra))
+            seen = plates
         else:
             scene = self.scene_of(s)
+            seen = list(scene.plates)
             scene = replace(scene, plates=scene.plates + self.extra)
-        optics = self.frame_optics(s, q, rates)
+        optics = self.frame_optics(seen, q, rates)
         return self.renderer.render(T, scene, self.noise, self.rng, optics)
 
     def render_at(self, t: float, hold: float = 0.2) -> NDArray[np.uint8]:

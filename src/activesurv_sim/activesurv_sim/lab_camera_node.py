@@ -12,8 +12,7 @@ what the lab is used for: the object while something reports it (a hardware run'
 ``table_runner`` publishes ``object_state``), else the commissioning boards at the position
 the table controller reports (``xy_table/stage/joint_states``).
 
-Parameters: those of ``sim_camera`` (``config/sim_camera.yaml``) and ``exposure_delay``,
-``jitter``, ``drop_rate`` (see ``config/lab_camera.yaml``).
+Parameters: those of ``sim_camera`` and ``exposure_delay``, ``jitter``, ``drop_rate``.
 """
 
 from __future__ import annotations

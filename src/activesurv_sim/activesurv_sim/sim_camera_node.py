@@ -5,11 +5,10 @@ Subscribes:
     <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
     capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
         the demand instant (like a hardware trigger armed ahead of time).
-    sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth at a requested
-        instant as already determined; the frame is rendered ahead with it and published at
-        the instant if the states that arrive then match (see ``activesurv_sim.sim_camera``).
-Publishes:
-    <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
+    sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth (and its rates)
+        at a requested instant as already determined; the frame is rendered ahead with it,
+        published at the instant if the states then match (``activesurv_sim.sim_camera``).
+Publishes: <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
 Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
 """
 
@@ -50,7 +49,6 @@ class SimCameraNode(Node):
         super().__init__('sim_camera', **kwargs)
         declare(self, PARAMS)
         declare_mount_parameters(self)
-
         g = self.get_parameter
         p = {name: g(name).value for name in MOUNT_PARAMETERS}
         self.camera_id = str(g('camera_id').value)
@@ -134,29 +132,19 @@ class SimCameraNode(Node):
             self._ahead(t)  # the truth may be planned already
 
     def _on_planned_object(self, msg: ObjectState) -> None:
-        t, state = time_to_sec(msg.header.stamp), object_state_vector(msg)
-        v = msg.velocity
-        self._ahead(t, state=state, slot=int(msg.slot), velocity=[v.x, v.y, v.z])
+        t, v = time_to_sec(msg.header.stamp), msg.velocity
+        self.sim.plan(t, object_state_vector(msg), None, int(msg.slot), [v.x, v.y, v.z])
+        self._ahead(t)
 
     def _on_planned_joints(self, msg: JointState) -> None:
-        q = joint_vector(msg, self.sim.joint_names)
+        names, t = self.sim.joint_names, time_to_sec(msg.header.stamp)
+        q = joint_vector(msg, names)
         if q is not None:
-            rate = list(msg.velocity) if len(msg.velocity) == len(msg.name) == len(q) else None
-            self._ahead(time_to_sec(msg.header.stamp), q=q, q_rate=rate)
+            self.sim.plan(t, q=q, q_rate=joint_vector(msg, names, 'velocity'))
+            self._ahead(t)
 
-    def _ahead(
-        self,
-        t: float,
-        state: Any = None,
-        q: Any = None,
-        slot: int = 0,
-        velocity: Any = None,
-        q_rate: Any = None,
-    ) -> None:
-        """Plan the truth at ``t`` (and its rates: the exposure's streak); render its frame now
-        if it is requested and planned."""
-        if state is not None or q is not None:
-            self.sim.plan(t, state, q, slot, velocity, q_rate)
+    def _ahead(self, t: float) -> None:
+        """Render the frame of ``t`` now if it is requested and its truth planned."""
         if t in self._pending:
             try:
                 self.sim.render_ahead(t)

@@ -108,9 +108,12 @@ def object_state_vector(msg: ObjectState) -> np.ndarray:
     return np.array([t.x, t.y, t.z, s.x, s.y, s.z, n.x, n.y, n.z], dtype=np.float64)
 
 
-def joint_vector(msg: JointState, names: Sequence[str]) -> np.ndarray | None:
-    """Positions of ``names`` (in that order) from a JointState, or None if one is missing."""
-    table = dict(zip(msg.name, msg.position, strict=False))
+def joint_vector(
+    msg: JointState, names: Sequence[str], field: str = 'position'
+) -> np.ndarray | None:
+    """Positions (or ``field='velocity'``: rates) of ``names``, in that order, from a
+    JointState; None if one is missing."""
+    table = dict(zip(msg.name, getattr(msg, field), strict=False))
     try:
         return np.array([float(table[n]) for n in names], dtype=np.float64)
     except KeyError:

@@ -40,6 +40,9 @@ def board_points(squares: tuple[int, int], square_size: float) -> Array:
     return np.column_stack([a, b, np.zeros_like(a)])
 
 
+HALF_WINDOW = 0.45  # of a square: the refinement window's half-width (5-15 px)
+
+
 def find_corners(image: ArrayLike, squares: tuple[int, int]) -> Array | None:
     """Sub-pixel inner corners in the order of :func:`board_points`, or None if not found."""
     img = as_gray8(image)
@@ -50,7 +53,14 @@ def find_corners(image: ArrayLike, squares: tuple[int, int]) -> Array | None:
     if not found:
         return None
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-    corners = cv2.cornerSubPix(img, corners, (5, 5), (-1, -1), criteria)
+    # The refinement window spans most of a square: a corner blurred by the depth of field (a
+    # board nearer or farther than the focus) has its saddle spread over more than the usual
+    # 11 x 11 pixels. Measured (offline commissioning, f/4, perturbed rig 3): reprojection RMS
+    # 0.27-0.49 -> 0.11-0.19 px, principal point 9-14 -> 1-3 px off; no change on sharp views.
+    rough = corners.reshape(-1, 2)
+    square_px = float(np.median(np.linalg.norm(np.diff(rough, axis=0), axis=1)))
+    half = int(np.clip(round(HALF_WINDOW * square_px), 5, 15))
+    corners = cv2.cornerSubPix(img, corners, (half, half), (-1, -1), criteria)
     pts = corners.reshape(-1, 2).astype(np.float64)
     # OpenCV may start from either end of the board (a 180 degree turn). The square diagonally
     # outside the first corner is square (0, 0), which is dark: check, and reverse if not.

@@ -22,6 +22,7 @@ from activesurv_common.mount import CameraMount
 from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import BoardSighting, Station, order_like
 from activesurv_sim.board import BoardFixture
+from activesurv_sim.optics import frame_optics
 from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.rig import Rig
 
@@ -128,7 +129,9 @@ def simulated_look(rig: Rig, camera_id: str, fixture: BoardFixture, seed: int = 
 
     def look(q: Array, x: float, y: float) -> Array | None:
         scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
-        image = renderer.render(true_mount.pose_from_joints(q), scene, noise, rng)
+        T = true_mount.pose_from_joints(q)
+        lens = frame_optics(rc.camera, rc.lens, T, scene.plates[0].center)  # at rest: no streak
+        image = renderer.render(T, scene, noise, rng, lens)
         return find_corners(image, fixture.squares)
 
     return look
@@ -144,7 +147,9 @@ def simulated_overhead_look(
 
     def look(x: float, y: float) -> Array | None:
         scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
-        image = renderer.render(rig.overhead_pose, scene, noise, rng)
+        T = rig.overhead_pose
+        lens = frame_optics(rig.overhead, rig.overhead_lens, T, scene.plates[-1].center)
+        image = renderer.render(T, scene, noise, rng, lens)
         return find_corners(image, fixture.top_squares)
 
     return look

@@ -129,9 +129,12 @@ def default_calibration() -> str | None:
     return os.environ.get('ACTIVESURV_CALIBRATION') or None
 
 
+COMMISSIONING = 2  # the procedure's version: 2 refines corners through blur (a new cache)
+
+
 def calibration_dir(cache: Path, rig: Rig) -> Path:
-    """Where the commissioning of ``rig`` is cached: one per rig content."""
-    content = rig_to_dict(rig)
+    """Where the commissioning of ``rig`` is cached: one per rig content and procedure."""
+    content = {**rig_to_dict(rig), 'commissioning': COMMISSIONING}
     if not content['obstacles']:  # (rigs before obstacles existed keep their cache)
         del content['obstacles']
     digest = hashlib.sha256(yaml.safe_dump(content, sort_keys=True).encode())

@@ -38,7 +38,7 @@ DYNAMIC_FOCAL_LENGTH = 0.025  # m (Table I)
 OVERHEAD_FOCAL_LENGTH = 0.012  # m (Table I)
 WORKSPACE_CENTRE = (0.25, 0.10, 0.05)  # m: the table's middle at the side marker's height
 MAX_STREAK = 128.0  # px: more over one exposure is a jump, not a motion
-MAX_DEFOCUS = 12.0  # px: a far point's blur (a 48 px circle: nothing of ours is measured through more)
+MAX_DEFOCUS = 12.0  # px: a far point's blur (a 48 px circle: beyond what the imager measures)
 
 
 class OpticsError(SimError, ValueError):

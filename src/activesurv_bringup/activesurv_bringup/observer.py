@@ -18,7 +18,6 @@ module (lazily): the report and evaluation tools never start a ROS client.
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 from collections import deque
 from collections.abc import Callable, Collection, Iterable, Sequence
@@ -174,12 +173,6 @@ class Observer:
         msg.positions = [float(v) for v in q]
         msg.max_velocities = [float(v) for v in velocities or [0.0] * len(names)]
         self._goal_pubs[stage].publish(msg)
-
-    def position(self, stage: str, names: Sequence[str]) -> list[float]:
-        """The stage's last reported positions of ``names`` (nan where not reported)."""
-        msg = self.states.get(stage)
-        at = {} if msg is None else dict(zip(msg.name, msg.position, strict=False))
-        return [float(at.get(n, math.nan)) for n in names]
 
     def at(self, stage: str, names: Sequence[str], q: Positions, tol: float) -> bool:
         """The stage reports ``q`` (within ``tol``) and stands still."""

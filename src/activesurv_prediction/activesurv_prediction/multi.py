@@ -130,6 +130,7 @@ class MultiTracker:
         if any(not np.all(np.isfinite(v)) for v in z):
             raise PredictionError('fixes must be finite')
         events: list[str] = []
+        late = t < self.stream_time  # a frame older than one already seen: no births from it
         self.stream_time = max(self.stream_time, t)
         live = [k for k in self.tracks if k.alive and k.tracker.predictor.last_time is not None]
         taken: set[int] = set()
@@ -159,20 +160,23 @@ class MultiTracker:
                 live[i].tracker.update(t, z[j])
                 taken.add(int(j))
         for j, v in enumerate(z):
-            if j in taken or not self.workspace.contains(v):
+            if late or j in taken or not self.workspace.contains(v):
                 continue
-            if any(
-                k.alive
-                and k.tracker.predictor.last_time is not None
-                and float(np.hypot(*(v - k.tracker.predictor.predict_mean(t)))) < self.near / 2
-                for k in self.tracks
-            ):
+            if any(self._near_track(k, t, v) for k in self.tracks):
                 continue  # a duplicate of a tracked marker (split blob): no new track
             k = Track(self._new_tracker(), t)
             k.tracker.update(t, v)
             self.tracks.append(k)
         events += self._housekeeping(t)
         return events
+
+    def _near_track(self, k: Track, t: float, v: Array) -> bool:
+        """Whether fix ``v`` at ``t`` lies within half ``near`` of live track ``k`` (where the
+        track is at ``t``, or at its last update if ``t`` is a frame older than that)."""
+        p = k.tracker.predictor
+        if not k.alive or p.last_time is None:
+            return False
+        return float(np.hypot(*(v - p.predict_mean(max(t, p.last_time))))) < self.near / 2
 
     def check_timeout(self, now: float) -> list[str]:
         """Lose the tracks the overhead stream has not seen for ``lost_timeout`` (the clock

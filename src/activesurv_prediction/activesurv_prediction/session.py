@@ -246,7 +246,7 @@ class PredictionSession:
         if self.multi is None:
             raise PredictionError('fixes of several objects need objects_at_once > 1')
         events = self.multi.update(t, fixes)
-        out = self.horizon(t)
+        out = self.horizon(self.multi.stream_time)  # a late frame does not turn time back
         out.events = events + out.events
         return out
 

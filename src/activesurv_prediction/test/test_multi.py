@@ -138,3 +138,18 @@ def test_n_objects_side_by_side_get_n_tracks(n: int) -> None:
     run(tracker, [(y, 0.0, 10.0, bool(i % 2)) for i, y in enumerate(ys)], 3.0)
     assert len([k for k in tracker.tracks if k.confirmed]) == n
     assert tracker.objects == n
+
+
+def test_a_frame_older_than_a_track_update_is_taken_without_error() -> None:
+    # Overhead frames can arrive out of order (two fixes of one stamp, a late frame): a fix
+    # older than a track's last update must neither raise nor start a duplicate track.
+    tracker = MultiTracker(interval=2.0, at_once=2)
+    for step in range(20):
+        t = step / RATE
+        tracker.update(t, [crossing(t, 0.07, 0.0, False)])
+    before = len(tracker.tracks)
+    late = 1.9 - 0.05
+    tracker.update(late, [crossing(late, 0.07, 0.0, False), np.array([0.3, 0.15])])
+    assert len(tracker.tracks) == before
+    tracker.update(2.0, [crossing(2.0, 0.07, 0.0, False), np.array([0.3, 0.15])])
+    assert len(tracker.tracks) == before + 1

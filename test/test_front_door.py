@@ -97,6 +97,7 @@ def test_help_loads_no_heavy_library() -> None:
         ['replay', '{tmp}', '--out', '{out}', '--rtf', '0'],
         ['replay', '/nonexistent', '--out', '{out}'],
         ['lab', '--rig', '/nonexistent.yaml', '--out', '{out}'],
+        ['hardware', 'measure-delay', '--hardware', '/nonexistent.yaml', '--calibration', '{tmp}'],
         ['demo', '--out', '{out}', '--rtf', 'nan'],
     ],
 )

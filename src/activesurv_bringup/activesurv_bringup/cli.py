@@ -859,7 +859,7 @@ def main(argv: list[str] | None = None) -> int:
                 )
         _dispatch(args, checked)
     except HardwareCheckError as exc:
-        if args.command != 'hardware':
+        if args.command != 'hardware' or not getattr(args, 'file', None):
             print(f'activesurv {args.command}: error: {exc}', file=sys.stderr)
             return 1
         # hardware check: one line per mistake, each naming the file and the key path.

@@ -24,9 +24,10 @@ class HardwareCheckError(ConfigError):
 
     def __init__(self, path: Path | str, problems: list[str]) -> None:
         n = len(problems)
-        super().__init__(
-            f'hardware file {path}: {n} mistake{"s" if n > 1 else ""}:\n  ' + '\n  '.join(problems)
-        )
+        if n == 1:  # one line, as every refused argument is
+            super().__init__(f'hardware file {path}: {problems[0].removeprefix("(file): ")}')
+        else:
+            super().__init__(f'hardware file {path}: {n} mistakes:\n  ' + '\n  '.join(problems))
         self.problems = problems
 
 

@@ -31,6 +31,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_srvs.srv import Trigger
 
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_common.camera_model import CameraModel
@@ -63,6 +64,9 @@ class Observer:
         self.frames: dict[str, deque[tuple[float, bytes]]] = {}
         self.infos: dict[str, CameraInfo] = {}
         self._capture_pub: Any = None
+        self._triggers: dict[str, Any] = {}  # camera -> its std_srvs/Trigger client
+        self._calls: deque[Any] = deque(maxlen=256)  # trigger calls in flight
+        self._paced: dict[str, tuple[float, float]] = {}  # camera -> (period, next call)
         self.requests = 0
         self.settle_timeout = 20.0  # s for a stage to reach a goal (move)
 
@@ -114,7 +118,8 @@ class Observer:
             left = end - time.monotonic()
             if left <= 0.0:
                 return
-            rclpy.spin_once(self.node, timeout_sec=min(0.05, left))
+            rclpy.spin_once(self.node, timeout_sec=min(0.01 if self._paced else 0.05, left))
+            self._pace()
             self.on_spin()
 
     def on_spin(self) -> None:
@@ -126,7 +131,8 @@ class Observer:
         while not done():
             if time.monotonic() > deadline:
                 return False
-            rclpy.spin_once(self.node, timeout_sec=0.02)
+            rclpy.spin_once(self.node, timeout_sec=0.01 if self._paced else 0.02)
+            self._pace()
             self.on_spin()
         return True
 
@@ -213,10 +219,16 @@ class Observer:
 
     # -- cameras -------------------------------------------------------------------------
 
-    def watch_camera(self, camera_id: str, image_topic: str, info_topic: str) -> None:
-        """Keep the newest frames (serialized, stamped) and the camera_info of a camera."""
+    def watch_camera(
+        self, camera_id: str, image_topic: str, info_topic: str, trigger_service: str = ''
+    ) -> None:
+        """Keep the newest frames (serialized, stamped) and the camera_info of a camera;
+        ``trigger_service``: a software-triggered camera's ``std_srvs/Trigger`` (it sends a
+        frame only when called: :meth:`trigger`)."""
         frames: deque[tuple[float, bytes]] = deque(maxlen=FRAMES_KEPT)
         self.frames[camera_id] = frames
+        if trigger_service:
+            self._triggers[camera_id] = self.node.create_client(Trigger, trigger_service)
 
         def keep(data: bytes) -> None:
             with contextlib.suppress(ValueError):  # not an Image: skipped
@@ -252,6 +264,9 @@ class Observer:
         frames = self.frames[camera_id]
         frames.clear()
         self._capture_pub.publish(msg)
+        if camera_id in self._triggers:  # it exposes when called: at the instant
+            self.spin_until(lambda: self.now() >= t, CAPTURE_LEAD + 1.0)
+            self.trigger(camera_id)
 
         def arrived() -> bool:
             return any(s >= t - 1e-6 for s, _ in frames)
@@ -262,6 +277,38 @@ class Observer:
             )
         data = next(d for s, d in frames if s >= t - 1e-6)
         return np.asarray(image_to_gray(deserialize_message(data, Image)), dtype=np.uint8)
+
+    def triggered(self, camera_id: str) -> bool:
+        """Whether the camera sends frames only when :meth:`trigger` calls it."""
+        return camera_id in self._triggers
+
+    def trigger(self, camera_id: str) -> None:
+        """Call a software-triggered camera's service (not waited for: it exposes as called).
+
+        Raises:
+            NodeDiedError: if the service is not offered.
+        """
+        client = self._triggers[camera_id]
+        if not client.service_is_ready() and not client.wait_for_service(timeout_sec=2.0):
+            raise NodeDiedError(f'{camera_id}: no trigger service {client.srv_name}')
+        self._calls.append(client.call_async(Trigger.Request()))
+        while self._calls and self._calls[0].done():
+            self._calls.popleft()
+
+    def pace(self, camera_id: str, rate: float | None) -> None:
+        """Trigger a software-triggered camera at ``rate`` Hz while this observer spins (a
+        stream of frames, as a free-running camera sends); ``None``: stop. A camera that is
+        not software-triggered is left alone."""
+        self._paced.pop(camera_id, None)
+        if rate and camera_id in self._triggers:
+            self._paced[camera_id] = (1.0 / rate, time.monotonic())
+
+    def _pace(self) -> None:
+        now = time.monotonic()
+        for cid, (period, due) in list(self._paced.items()):
+            if now >= due:
+                self.trigger(cid)
+                self._paced[cid] = (period, max(due + period, now - period))
 
     def camera_model(
         self, camera_id: str, fallback: CameraModel, timeout: float = 2.0

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from activesurv_common.trigger import SourceKind
+from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_dispatch.sensors import Sensor
 from activesurv_hardware.hardware_file import CameraEntry
 from activesurv_launch.launcher import NodeSpec
@@ -108,6 +108,8 @@ def source_specs(cam: CameraEntry, calibration: str) -> tuple[list[NodeSpec], di
                 'frame_rate': cam.frame_rate,
                 'loop': bool(options.get('loop', False)),
                 'camera_info_file': f'{calibration}/{cid}.yaml',
+                'trigger': 'software' if cam.trigger == Trigger.SOFTWARE else 'free',
+                'exposure_delay': cam.exposure_delay,
             },
         )
     ], {}

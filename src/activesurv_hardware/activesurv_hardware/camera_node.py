@@ -7,6 +7,15 @@ subtracts the hardware file's ``exposure_delay``). It free-runs: the device sets
 video file plays at ``frame_rate``. A device that stops giving frames is reopened every
 ``reconnect_period``; /diagnostics says how many frames came and how often it failed.
 
+``trigger: software`` (the hardware file's ``trigger: software`` for a ``device:`` source): the
+node offers ``~/trigger`` (``std_srvs/Trigger``) and publishes, for each call, the first frame
+whose exposure (read time minus ``exposure_delay``) began at or after the call, and no other
+frame. OpenCV's ``VideoCapture`` cannot start a sensor's exposure (a UVC or GigE camera behind it
+streams at its own rate), so the node keeps reading the stream (its buffer stays fresh) and
+chooses: the frame's exposure falls within one frame period after the call. The imager calls
+half a period ahead of the instant (see ``hardware_graph.imager_config``), so the frame is the
+one nearest the instant, published at once and alone: nothing else crosses DDS or is decoded.
+
 Parameters: see ``config/camera.yaml``.
 """
 
@@ -14,11 +23,13 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from typing import Any
 
 import cv2
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
+from std_srvs.srv import Trigger
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.ros import diagnostics, qos, topics
@@ -40,6 +51,22 @@ PARAMS = (
     Param('encoding', 'mono8', 'published encoding', choices=('mono8', 'bgr8')),
     Param('camera_info_file', '', 'calibration YAML (camera_calibration format); empty: none'),
     Param('reconnect_period', 1.0, 's between attempts to reopen the device', above=0.0),
+    Param(
+        'trigger',
+        'free',
+        'free: publish every frame; software: only the first frame exposed after each call '
+        'of ~/trigger (std_srvs/Trigger)',
+        choices=('free', 'software'),
+    ),
+    Param(
+        'exposure_delay',
+        0.0,
+        "s from a frame's exposure to its read (software trigger: which frame began after "
+        'the call)',
+        minimum=0.0,
+        maximum=1.0,
+    ),
+    Param('trigger_queue', 16, 'software trigger: calls kept waiting for a frame', minimum=1),
 )
 
 
@@ -62,6 +89,14 @@ class CameraNode(Node):
         if v['camera_info_file']:
             self.model = CameraModel.load(str(v['camera_info_file']))
         self.last_error = ''
+        self.triggered = v['trigger'] == 'software'
+        self.exposure_delay = float(v['exposure_delay'])
+        # Software trigger: the calls (wall-clock s) still waiting for their frame.
+        self._armed: deque[float] = deque(maxlen=int(v['trigger_queue']))
+        self._lock = threading.Lock()
+        self.triggers = self.published = self.skipped = 0
+        if self.triggered:
+            self.create_service(Trigger, '~/trigger', self._on_trigger)
         self._image_pub = self.create_publisher(Image, topics.image(self.camera_id), qos.SENSOR)
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR
@@ -88,11 +123,35 @@ class CameraNode(Node):
                 self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
                 self._stop.wait(self.reconnect)
                 continue
-            stamp = self.get_clock().now().to_msg()
-            self._publish(frame, stamp)
+            now = self.get_clock().now()
+            if not self.triggered or self._take(now.nanoseconds * 1e-9):
+                self._publish(frame, now.to_msg())
             if self.period:
                 next_t += self.period
                 self._stop.wait(max(0.0, next_t - time.monotonic()))
+
+    def _on_trigger(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        with self._lock:
+            self._armed.append(self.get_clock().now().nanoseconds * 1e-9)
+            self.triggers += 1
+        response.success = True
+        response.message = 'armed: the next frame exposed from now is published'
+        return response
+
+    def _take(self, read_at: float) -> bool:
+        """Whether the frame read at ``read_at`` answers a waiting call (it began exposing at
+        or after the call); answers every call it is the first such frame for."""
+        exposed = read_at - self.exposure_delay
+        with self._lock:
+            answered = 0
+            while self._armed and self._armed[0] <= exposed:
+                self._armed.popleft()
+                answered += 1
+            if not answered:
+                self.skipped += 1
+                return False
+            self.published += 1
+            return True
 
     def _publish(self, frame: Any, stamp: Any) -> None:
         if frame.ndim == 2 or self.encoding == 'mono8':
@@ -111,7 +170,14 @@ class CameraNode(Node):
             f'activesurv/camera/{self.camera_id}',
             self.camera_id,
             f'{self.source.frames} frames' if ok else f'not open: {self.last_error}',
-            dict(frames=self.source.frames, failures=self.source.failures, device=self.device),
+            dict(
+                frames=self.source.frames,
+                failures=self.source.failures,
+                device=self.device,
+                trigger='software' if self.triggered else 'free',
+                triggers=self.triggers,
+                published=self.published if self.triggered else self.source.frames,
+            ),
             diagnostics.OK if ok else diagnostics.ERROR,
         )
         self._diag_pub.publish(diagnostics.array(self.get_clock().now().to_msg(), s))

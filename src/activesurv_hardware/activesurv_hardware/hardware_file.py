@@ -42,6 +42,7 @@ from typing import Any
 import yaml
 
 from activesurv_common.object_geometry import ObjectGeometry
+from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_hardware.errors import HardwareFileError
 from activesurv_hardware.schema import (
     CameraSection,
@@ -80,6 +81,19 @@ class CameraEntry:
     stages_dict: Mapping[str, Any] | None = None
     trigger_service: str = ''  # software trigger of a driver's topic (std_srvs/Trigger)
     trigger_lead: float = 0.0  # s: the service is called this long before the instant
+
+    @property
+    def software_trigger(self) -> tuple[str, float]:
+        """(service, lead s) to call ahead of each instant; ('', 0) unless software-triggered.
+        A ``device:`` source is our camera node, whose ``~/trigger`` publishes the first frame
+        exposed after the call: called half a period ahead (unless ``trigger_lead`` says),
+        that frame is the one nearest the instant."""
+        if self.trigger != Trigger.SOFTWARE:
+            return '', 0.0
+        if self.source.kind == SourceKind.DEVICE:
+            lead = self.trigger_lead or 0.5 / self.frame_rate
+            return f'{self.camera_id}_camera/trigger', lead
+        return self.trigger_service, self.trigger_lead
 
 
 @dataclass(frozen=True)
@@ -329,7 +343,10 @@ geometry:
 #   trigger: hardware | software | free     (required) free: the frame nearest the demand
 #                                            instant is taken and corrected for motion;
 #                                            software: trigger_service (a driver's
-#                                            std_srvs/Trigger) is called trigger_lead s ahead
+#                                            std_srvs/Trigger) is called trigger_lead s ahead;
+#                                            with a device: source our camera node is called
+#                                            (default lead: half a frame period) and publishes
+#                                            the first frame exposed after the call
 #   frame_rate: Hz; exposure_delay: s from the exposure to the frame's stamp (required;
 #     activesurv hardware measure-delay measures it)
 #   stages: the controller YAML stage_bridge reads (inline as here, or a path):

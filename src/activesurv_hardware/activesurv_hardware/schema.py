@@ -69,10 +69,15 @@ class CameraSection(StrictModel):
     trigger_service: str | None = Field(
         None,
         min_length=1,
-        description="software trigger of a driver's topic: its std_srvs/Trigger service",
+        description="software trigger of a driver's topic: its std_srvs/Trigger service "
+        '(a device: source is triggered through our camera node)',
     )
     trigger_lead: float = Field(
-        0.0, ge=0.0, le=1.0, description='software trigger: called this long before [s]'
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description='software trigger: called this long before the instant [s] (0 with a '
+        'device: source: half a frame period)',
     )
     stages: ControllerFile | None = Field(
         None, description='the controller YAML stage_bridge reads (inline or a path)'
@@ -237,10 +242,11 @@ def cross_problems(hw: HardwareFile) -> list[str]:
         if cam.trigger is not Trigger.SOFTWARE:
             continue
         if cam.source.device is not None:
-            found.append(
-                f'{"" if cid == "overhead" else "cameras."}{cid}.trigger: software is for a '
-                "driver's topic: source (its trigger_service); use hardware or free here"
-            )
+            if cam.trigger_service:
+                found.append(
+                    f'{"" if cid == "overhead" else "cameras."}{cid}.trigger_service: only for '
+                    "a driver's topic: a device: source is triggered through our camera node"
+                )
         elif not cam.trigger_service:
             found.append(
                 f'{"" if cid == "overhead" else "cameras."}{cid}.trigger_service: missing '

@@ -135,3 +135,51 @@ def test_truth_is_the_reported_carriage_through_the_object_model() -> None:
     assert np.allclose(a.side, [0.2, 0.07, 0.05])
     assert np.allclose(b.velocity, [0.02, 0.0, 0.0])
     assert b.moving
+
+
+def test_a_software_triggered_camera_node_publishes_one_frame_per_call(
+    rclpy_context: Any, spin_until: Callable[..., bool], video: Path
+) -> None:
+    from sensor_msgs.msg import Image
+    from std_srvs.srv import Trigger
+
+    node = CameraNode(
+        parameter_overrides=[
+            Parameter('camera_id', value='cam8'),
+            Parameter('device', value=str(video)),
+            Parameter('frame_rate', value=40.0),
+            Parameter('loop', value=True),
+            Parameter('trigger', value='software'),
+            Parameter('exposure_delay', value=0.01),
+        ]
+    )
+    peer = rclpy_context.create_node('trigger_test_peer')
+    images: list[Any] = []
+    try:
+        peer.create_subscription(Image, topics.image('cam8'), images.append, qos.SENSOR)
+        client = peer.create_client(Trigger, 'camera/trigger')
+        assert client.wait_for_service(timeout_sec=10.0)
+        assert spin_until([peer, node], lambda: node.source.frames >= 10, timeout=10.0)
+        assert not images  # streaming, but nothing published until asked
+        calls = []
+        for n in range(5):
+            called = peer.get_clock().now().nanoseconds * 1e-9
+            future = client.call_async(Trigger.Request())
+            assert spin_until([peer, node], future.done, timeout=5.0)
+            assert future.result().success
+            calls.append(called)
+            assert spin_until([peer, node], lambda n=n: len(images) > n, timeout=5.0)
+        assert spin_until([peer, node], lambda: node.source.frames >= 40, timeout=10.0)
+        assert len(images) == 5  # one frame per call, no other
+        stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in images]
+        exposed = [s - 0.01 for s in stamps]
+        # Each frame began exposing after its call, within a frame period (40 Hz) and jitter.
+        offsets = [e - c for e, c in zip(exposed, calls, strict=True)]
+        assert all(0.0 <= o < 0.025 + 0.05 for o in offsets), offsets
+        assert node.triggers == 5
+        assert node.published == 5
+        assert node.skipped >= 30
+    finally:
+        node.close()
+        node.destroy_node()
+        peer.destroy_node()

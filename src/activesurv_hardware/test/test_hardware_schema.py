@@ -98,6 +98,12 @@ def _two_chains_one_device(doc: dict[str, Any]) -> None:
     doc['cameras']['cam2']['stages']['controller']['port'] = '/dev/ttyUSB0'  # cam1's chain
 
 
+def _software_device_with_service(doc: dict[str, Any]) -> None:
+    cam = doc['cameras']['cam2']
+    cam['source'] = {'device': '/dev/video2'}
+    cam['trigger'], cam['trigger_service'] = 'software', '/cam2/trigger'
+
+
 MISTAKES = [
     # (what a lab engineer got wrong, the edit, the key path in the message, a word of it)
     ('typo in a camera key', _rename('cameras.cam1.exposure_delay', 'exposure_dealy'),
@@ -147,6 +153,10 @@ MISTAKES = [
     ('two cameras, one device number on a chain', _two_chains_one_device,
      'cameras.cam2.stages.axes[0].axis', 'device 1 on /dev/ttyUSB0'),
     ('bad namespace', _set('namespace', 'my lab'), 'namespace', 'letters, digits'),
+    ('software trigger of a driver without its service', _set('cameras.cam1.trigger',
+     'software'), 'cameras.cam1.trigger_service', 'missing'),
+    ('a service named for our own camera node', _software_device_with_service,
+     'cameras.cam2.trigger_service', 'only for'),
 ]  # fmt: skip
 
 
@@ -232,3 +242,21 @@ def test_json_schema_export() -> None:
     assert set(props['trigger'].keys()) & {'$ref', 'allOf', 'anyOf'}
     assert {'type': 'string'}.items() <= props['stages']['anyOf'][-1].items()
     assert HardwareFile.model_json_schema()  # pydantic's own export works
+
+
+def test_a_device_source_is_software_triggered_through_our_camera_node(tmp_path: Path) -> None:
+    doc = _template()
+    doc['cameras']['cam2']['source'] = {'device': '/dev/video2'}
+    doc['cameras']['cam2']['trigger'] = 'software'
+    doc['cameras']['cam2']['frame_rate'] = 25.0
+    doc['cameras']['cam3']['source'] = {'topic': '/cam3/image_raw'}
+    doc['cameras']['cam3']['trigger'] = 'software'
+    doc['cameras']['cam3']['trigger_service'] = '/cam3/driver/trigger'
+    doc['cameras']['cam3']['trigger_lead'] = 0.004
+    path = tmp_path / 'hw.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    hw = load_hardware(path)
+    # Our node's own service, called half a period ahead; a driver's as the file says.
+    assert hw.cameras['cam2'].software_trigger == ('cam2_camera/trigger', pytest.approx(0.02))
+    assert hw.cameras['cam3'].software_trigger == ('/cam3/driver/trigger', 0.004)
+    assert hw.cameras['cam1'].software_trigger == ('', 0.0)

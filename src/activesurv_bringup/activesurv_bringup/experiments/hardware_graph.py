@@ -75,10 +75,14 @@ def imager_config(
     cam: CameraEntry, marker_radius: float, motion_correction: bool = True
 ) -> ImagerConfig:
     """What an imager on the real rig is told: its camera's trigger and timing."""
+    streamed = cam.trigger == Trigger.SOFTWARE and cam.source.kind == SourceKind.DEVICE
     return ImagerConfig(
         cam.camera_id,
         marker_radius,
         trigger=cam.trigger,
+        # Our camera node, software-triggered, answers with the frame nearest the instant:
+        # within half a period of it (plus the stamps' jitter), moved there for the motion.
+        frame_tolerance=0.5 / cam.frame_rate + 0.005 if streamed else 0.005,
         frame_rate=cam.frame_rate,
         exposure_delay=cam.exposure_delay,
         # Free-running frames arrive up to half a period plus the delay after the instant.
@@ -188,10 +192,8 @@ def hardware_specs(
                 extra={
                     'record_frames': record_frames == 'used',
                     # A software-triggered driver: its Trigger service, called ahead.
-                    'trigger_service': (
-                        cam.trigger_service if cam.trigger == Trigger.SOFTWARE else ''
-                    ),
-                    'trigger_lead': cam.trigger_lead,
+                    'trigger_service': cam.software_trigger[0],
+                    'trigger_lead': cam.software_trigger[1],
                     # The commissioned intrinsics, whatever the driver's camera_info says.
                     **(
                         {'camera_info_file': str(commissioned)}

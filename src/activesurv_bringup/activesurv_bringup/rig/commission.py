@@ -22,7 +22,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -131,18 +131,20 @@ class Commissioner(Observer):
         settle_timeout: float = 20.0,
         image_topics: dict[str, tuple[str, str]] | None = None,
         namespace: str = '',
+        triggers: Mapping[str, str] | None = None,
     ) -> None:
         super().__init__('commissioner', namespace)
         self.setup = setup
         self.cameras = list(cameras)
         self.settle_timeout = settle_timeout
         self._image_topics = image_topics or {}
+        self._trigger_services = dict(triggers or {})
 
     def on_start(self) -> None:
         self.watch_stages([TABLE_ID, *self.cameras])
         for cid in ['overhead', *self.cameras]:
             image, info = self._image_topics.get(cid, (topics.image(cid), topics.camera_info(cid)))
-            self.watch_camera(cid, image, info)
+            self.watch_camera(cid, image, info, self._trigger_services.get(cid, ''))
 
     def hold(
         self, runner: Launcher, specs: Sequence[NodeSpec], startup_timeout: float
@@ -486,7 +488,13 @@ def run_commission(
     ns = hardware.namespace if hardware is not None else ''
     started = time.monotonic()
     with (
-        Commissioner(setup, chosen, image_topics=topics_of, namespace=ns) as com,
+        Commissioner(
+            setup,
+            chosen,
+            image_topics=topics_of,
+            namespace=ns,
+            triggers=hardware_triggers(hardware) if hardware is not None else {},
+        ) as com,
         com.hold(launcher, specs, startup_timeout),
     ):
         return _commission(
@@ -534,6 +542,15 @@ def _commission(
     report['seconds'] = round(time.monotonic() - started, 1)
     write_calibration(out, cal, report)
     return report
+
+
+def hardware_triggers(hw: Hardware) -> dict[str, str]:
+    """The software-triggered cameras of a hardware file: camera -> its Trigger service."""
+    return {
+        cam.camera_id: cam.software_trigger[0]
+        for cam in [hw.overhead, *hw.cameras.values()]
+        if cam.software_trigger[0]
+    }
 
 
 def hardware_commission_specs(

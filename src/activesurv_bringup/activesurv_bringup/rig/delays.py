@@ -27,7 +27,11 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Image, JointState
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
-from activesurv_bringup.rig.commission import Commissioner, hardware_commission_specs
+from activesurv_bringup.rig.commission import (
+    Commissioner,
+    hardware_commission_specs,
+    hardware_triggers,
+)
 from activesurv_bringup.rig.hardware import hardware_layout
 from activesurv_bringup.rig.rigs import nominal, resolve_calibration
 from activesurv_common.calibration import Calibration
@@ -99,17 +103,21 @@ def measure_camera(
     squares: tuple[int, int],
     speeds: Sequence[float],
     progress: Progress,
+    rate: float = 30.0,
 ) -> DelayFit:
-    """Sweep the table in front of camera ``cid`` and fit its delay."""
+    """Sweep the table in front of camera ``cid`` and fit its delay (``rate``: Hz a
+    software-triggered camera is called at meanwhile)."""
     y, lo, hi = plan
     com.move(TABLE_ID, list(TABLE_JOINTS), np.array([lo, y]), tol=2e-5)
     rec.frames, rec.table, rec.on = [], [], cid
+    com.pace(cid, rate)  # a software-triggered camera: called at its frame rate meanwhile
     try:
         for v in speeds:
             for target in (hi, lo):
                 com.move(TABLE_ID, [TABLE_JOINTS[0]], np.array([target]), 2e-5, [v])
     finally:
         com.spin(0.3)  # the last frames of the pass
+        com.pace(cid, None)
         rec.on = ''
     stamps, uv = _board_positions(rec.frames, squares)
     progress(
@@ -181,7 +189,13 @@ def run_measure_delay(
     launcher = Launcher(specs, workdir=work / 'logs', env=dict(os.environ))
     fits: dict[str, DelayFit] = {}
     with (
-        Commissioner(setup, dynamic, image_topics=topics_of, namespace=hw.namespace) as com,
+        Commissioner(
+            setup,
+            dynamic,
+            image_topics=topics_of,
+            namespace=hw.namespace,
+            triggers=hardware_triggers(hw),
+        ) as com,
         com.hold(launcher, specs, startup_timeout),  # Ctrl-C: the bridges stop their axes
     ):
         rec = _Recorder(com, topics_of)
@@ -191,7 +205,10 @@ def run_measure_delay(
                 names = list(setup.sensor(cid).joint_names)
                 com.move(cid, names, joints[cid], tol=2e-4)
             squares = fixture.top_squares if cid == 'overhead' else fixture.squares
-            fit = measure_camera(com, rec, cid, plans[cid], squares, speeds, progress)
+            cam = hw.overhead if cid == 'overhead' else hw.cameras[cid]
+            fit = measure_camera(
+                com, rec, cid, plans[cid], squares, speeds, progress, cam.frame_rate
+            )
             fits[cid] = fit
             progress(
                 f'{cid}: exposure delay {1e3 * fit.delay:.1f} ms, jitter '

@@ -49,6 +49,7 @@ from activesurv_imaging.marker_pose import measure_marker
 from activesurv_imaging.observation import (
     Observation,
     failed,
+    image_streak,
     observe_marker,
     perturb,
 )
@@ -306,6 +307,8 @@ class CaptureCore(Generic[F]):
             r.prior_normal,
             c.inject_flip,
             r.position if c.several_objects else None,
+            # The marker's motion over the exposure, taken out of its ellipse.
+            image_streak(self.camera, T, r.position, r.velocity) if c.motion_correction else None,
         )
         obs = replace(
             obs,

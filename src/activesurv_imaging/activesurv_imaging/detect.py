@@ -63,6 +63,10 @@ class DetectorConfig:
             profiles are linearised first (a blurred edge's half-way crossing in radiance is
             the edge, in grey levels it is not). 1: a linear camera.
         subpixel: refine edges to sub-pixel (off: the boundary pixels are used as they are).
+        streak_length: px the marker moved over the exposure, when known: the search range
+            covers the streak's ramp (half of it plus 8 px either side, up to 0.9 of the
+            semi-minor axis), so that both grey levels lie beyond the ramp's ends however far
+            the coarse boundary (a threshold across a long ramp) lies from the edge.
         near_gate: px from the expected position within which one of several markers is taken.
     """
 
@@ -79,6 +83,7 @@ class DetectorConfig:
     gamma: float = 1.0
     subpixel: bool = True
     near_gate: float = 60.0
+    streak_length: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -91,6 +96,7 @@ class Detection:
         ellipse: the fitted ellipse when OK.
         edge_points: (N, 2) boundary points the ellipse was fitted to.
         candidates: how many marker-sized bright blobs were seen.
+        blur_sigma: px, the isotropic blur found across the edge (lens, focus, pixel).
     """
 
     status: DetectionStatus
@@ -98,6 +104,7 @@ class Detection:
     ellipse: Ellipse | None = None
     edge_points: Array = field(default_factory=lambda: np.zeros((0, 2)))
     candidates: int = 0
+    blur_sigma: float = 0.0
 
 
 def as_gray8(image: ArrayLike) -> NDArray[np.uint8]:
@@ -142,13 +149,14 @@ def _outward_normals(ell: Ellipse, pts: Array) -> Array:
 
 def subpixel_edges(
     image: NDArray[np.uint8], boundary: Array, coarse: Ellipse, config: DetectorConfig
-) -> Array:
+) -> tuple[Array, float]:
     """Move boundary pixels to the half-way crossing of the grey-level profile across the edge.
 
     The profile runs along the coarse ellipse's normal over a range that grows with the marker
     (:class:`DetectorConfig`), in linear radiance (the camera's ``gamma`` undone); the marker
     and plate levels are the medians of its inner and outer quarters, beyond a blurred edge's
-    ramp, so that the crossing is the edge whatever the blur.
+    ramp, so that the crossing is the edge whatever the blur. Returns the points and the
+    isotropic blur's variance found across the edge (px^2).
     """
     normals = _outward_normals(coarse, boundary)
     half = float(
@@ -158,6 +166,8 @@ def subpixel_edges(
             max(config.max_profile_half_length, config.profile_half_length),
         )
     )
+    if config.streak_length > 0.0:  # the streak's ramp and a margin either side of it
+        half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
     step = 0.25 if half <= 6.0 else 0.5
     steps = np.arange(-half, half + 1e-9, step)
     xs = (boundary[:, 0:1] + normals[:, 0:1] * steps[None, :]).astype(np.float32)
@@ -184,10 +194,11 @@ def subpixel_edges(
     # contour inside the disc by curvature x s2 / 2. Motion blur adds variance along its
     # direction only, and moves no half-way point along it: the isotropic part is the least
     # variance found around the marker.
+    var = 0.0
     if len(idx):
         var = _blur_variance(prof[idx], steps, bright[idx], dark[idx])
         t += 0.5 * _curvature(coarse, boundary[idx]) * var
-    return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64)
+    return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64), var
 
 
 def _blur_variance(prof: Array, steps: Array, bright: Array, dark: Array) -> float:
@@ -416,7 +427,7 @@ def _fit_blob(
     fit: Fitter = fit_ellipse if fitter is None else fitter
     contour, coarse = blob
     boundary = contour.reshape(-1, 2).astype(np.float64)
-    edges = subpixel_edges(img, boundary, coarse, cfg) if cfg.subpixel else boundary
+    edges, var = subpixel_edges(img, boundary, coarse, cfg) if cfg.subpixel else (boundary, 0.0)
     if len(edges) < max(12, len(boundary) // 2):
         return Detection(
             DetectionStatus.REJECTED,
@@ -430,7 +441,7 @@ def _fit_blob(
         return Detection(
             DetectionStatus.REJECTED, f'ellipse fit failed: {exc}', candidates=candidates
         )
-    return Detection(DetectionStatus.OK, '', ellipse, edges, candidates)
+    return Detection(DetectionStatus.OK, '', ellipse, edges, candidates, math.sqrt(var))
 
 
 def detect_marker(image: ArrayLike) -> Ellipse | None:

@@ -23,6 +23,7 @@ from activesurv_imaging.detect import (
 )
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse
 from activesurv_imaging.errors import CirclePoseError, EllipseFitError
+from activesurv_imaging.streak import MIN_STREAK, unswept
 
 Array = NDArray[np.float64]
 
@@ -47,6 +48,8 @@ class MarkerMeasurement:
         poses: both circle poses (camera optical frame) when solved.
         chosen: index of the pose chosen with the prior normal.
         margin: radians by which the chosen normal is closer to the prior than the other.
+        swept: the ellipse as measured when a streak was taken out of it (``ellipse`` is
+            then the marker at mid-exposure, unswept: :mod:`activesurv_imaging.streak`).
     """
 
     status: MeasurementStatus
@@ -55,6 +58,7 @@ class MarkerMeasurement:
     poses: tuple[CirclePose, CirclePose] | None = None
     chosen: int = 0
     margin: float = 0.0
+    swept: Ellipse | None = None
 
     @property
     def pose(self) -> CirclePose | None:
@@ -72,6 +76,7 @@ def measure_marker(
     detection: Detection | None = None,
     near_gate: float | None = None,
     gamma: float | None = None,
+    streak: ArrayLike | None = None,
 ) -> MarkerMeasurement:
     """Measure the marker pose in one image.
 
@@ -90,6 +95,9 @@ def measure_marker(
         gamma: the camera's response (``grey = 255 radiance^(1/gamma)``) the edges are
             measured through; None: the camera model's (``camera.gamma``, 1 unless its
             calibration says otherwise).
+        streak: (du, dv) px the marker's image moved over the exposure (its predicted
+            velocity times the exposure time, projected): the fitted ellipse is unswept
+            (:func:`activesurv_imaging.streak.unswept`) before the pose is solved.
 
     Raises:
         ImagingError: if ``image`` is not an 8-bit image.
@@ -98,6 +106,9 @@ def measure_marker(
     response = camera.gamma if gamma is None else float(gamma)
     if response != 1.0:
         config = replace(config or DetectorConfig(), gamma=response)
+    s = None if streak is None else np.asarray(streak, dtype=np.float64).reshape(2)
+    if s is not None and np.all(np.isfinite(s)) and float(np.hypot(*s)) >= MIN_STREAK:
+        config = replace(config or DetectorConfig(), streak_length=float(np.hypot(*s)))
     det = (
         detect_marker_detailed(image, config, fit, near, near_gate)
         if detection is None
@@ -116,10 +127,15 @@ def measure_marker(
             ellipse = fit(camera.undistort_pixels(det.edge_points))
         except EllipseFitError as exc:
             return MarkerMeasurement(MeasurementStatus.REJECTED, f'undistorted fit failed: {exc}')
+    swept = None
+    if s is not None:
+        swept, ellipse = ellipse, unswept(ellipse, s, det.blur_sigma)
+        if ellipse is swept:
+            swept = None
     try:
         poses = circle_poses(ellipse, camera.K, radius)
     except CirclePoseError as exc:
-        return MarkerMeasurement(MeasurementStatus.POSE_FAILED, str(exc), ellipse)
+        return MarkerMeasurement(MeasurementStatus.POSE_FAILED, str(exc), ellipse, swept=swept)
     if prior_normal is None:
         # Without a prior, prefer the pose seen more frontally (the smaller bearing).
         views = [float(p.normal @ (-p.center / np.linalg.norm(p.center))) for p in poses]
@@ -127,4 +143,4 @@ def measure_marker(
         margin = 0.0
     else:
         chosen, margin = choose_pose(poses, prior_normal)
-    return MarkerMeasurement(MeasurementStatus.OK, '', ellipse, poses, chosen, margin)
+    return MarkerMeasurement(MeasurementStatus.OK, '', ellipse, poses, chosen, margin, swept)

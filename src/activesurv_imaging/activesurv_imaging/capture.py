@@ -78,6 +78,9 @@ class ImagerConfig:
             as occluded.
         several_objects: several objects at once: of the markers in view, measure the one
             nearest the demand's predicted position (15 mm at most), never another's.
+        exposure_time: s the shutter is open: the streak a moving marker leaves over it is
+            taken out of its ellipse (:mod:`activesurv_imaging.streak`); 0: the camera
+            model's (its calibration YAML's), if any.
         pointing_std: rad the calibration leaves unknown of where the camera points, added to
             every reading's covariance (:func:`with_pointing`; 0.1 mrad: what commissioned
             simulated rigs show, see docs/design-choices.md).
@@ -95,6 +98,7 @@ class ImagerConfig:
     trigger: str = 'hardware'
     frame_rate: float = 0.0
     exposure_delay: float = 0.0
+    exposure_time: float = 0.0
     motion_correction: bool = True
     free_reach: float = 3.25
     velocity_std: float = 0.002
@@ -109,6 +113,8 @@ class ImagerConfig:
             math.isfinite(self.frame_rate) and self.frame_rate > 0.0
         ):
             raise ImagingError(f'free-running needs frame_rate > 0, not {self.frame_rate}')
+        if not (math.isfinite(self.exposure_time) and 0.0 <= self.exposure_time <= 1.0):
+            raise ImagingError(f'exposure_time must be in [0, 1] s, got {self.exposure_time}')
         if not (math.isfinite(self.exposure_delay) and self.exposure_delay >= 0.0):
             raise ImagingError(f'exposure_delay must be >= 0 s, got {self.exposure_delay}')
         if not (math.isfinite(self.free_reach) and self.free_reach >= 0.5):
@@ -308,7 +314,9 @@ class CaptureCore(Generic[F]):
             c.inject_flip,
             r.position if c.several_objects else None,
             # The marker's motion over the exposure, taken out of its ellipse.
-            image_streak(self.camera, T, r.position, r.velocity) if c.motion_correction else None,
+            image_streak(self.camera, T, r.position, r.velocity, c.exposure_time or None)
+            if c.motion_correction
+            else None,
         )
         obs = replace(
             obs,

@@ -20,6 +20,13 @@ PARAMS = (
     Param('trigger', 'hardware', 'how the camera exposes', choices=TRIGGERS),
     Param('frame_rate', 0.0, 'Hz of a free-running camera', minimum=0.0),
     Param('exposure_delay', 0.0, 's from exposure to the frame stamp', minimum=0.0),
+    Param(
+        'exposure_time',
+        0.0,
+        "s the shutter is open (a moving marker's streak is taken out); 0: the calibration's",
+        minimum=0.0,
+        maximum=1.0,
+    ),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
     Param('free_reach', 3.25, 'free-running: periods the taken frame may be off', minimum=0.5),
     Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),

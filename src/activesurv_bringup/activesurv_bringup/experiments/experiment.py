@@ -194,10 +194,13 @@ class Experiment:
     def imager_config(self, camera_id: str, fault: Fault | None = None) -> ImagerConfig:
         """What camera ``camera_id``'s imager is told in this simulated experiment (with its
         injected fault, if any): its stages latch their state at each instant."""
+        # The exposure the camera is set to (the lab sets it; a streak is taken out over it).
+        exposure = self.rig.rig.camera(camera_id).lens.exposure_time if self.rig else 0.0
         return ImagerConfig(
             camera_id,
             self.setup.marker_radius,
             exact_state=True,
+            exposure_time=exposure,
             obstacles=self.setup.obstacles,
             **imager_injection(fault),  # type: ignore[arg-type]
         )

@@ -81,6 +81,8 @@ class ImagerConfig:
         exposure_time: s the shutter is open: the streak a moving marker leaves over it is
             taken out of its ellipse (:mod:`activesurv_imaging.streak`); 0: the camera
             model's (its calibration YAML's), if any.
+        gamma: the camera's response the frames are linearised with (its calibration's:
+            commissioning estimates it); 0: the camera model's.
         pointing_std: rad the calibration leaves unknown of where the camera points, added to
             every reading's covariance (:func:`with_pointing`; 0.1 mrad: what commissioned
             simulated rigs show, see docs/design-choices.md).
@@ -99,6 +101,7 @@ class ImagerConfig:
     frame_rate: float = 0.0
     exposure_delay: float = 0.0
     exposure_time: float = 0.0
+    gamma: float = 0.0
     motion_correction: bool = True
     free_reach: float = 3.25
     velocity_std: float = 0.002
@@ -113,6 +116,10 @@ class ImagerConfig:
             math.isfinite(self.frame_rate) and self.frame_rate > 0.0
         ):
             raise ImagingError(f'free-running needs frame_rate > 0, not {self.frame_rate}')
+        if not (self.gamma == 0.0 or (math.isfinite(self.gamma) and 0.2 <= self.gamma <= 5.0)):
+            raise ImagingError(
+                f"gamma must be 0 (the camera model's) or in [0.2, 5], got {self.gamma}"
+            )
         if not (math.isfinite(self.exposure_time) and 0.0 <= self.exposure_time <= 1.0):
             raise ImagingError(f'exposure_time must be in [0, 1] s, got {self.exposure_time}')
         if not (math.isfinite(self.exposure_delay) and self.exposure_delay >= 0.0):
@@ -181,7 +188,9 @@ class CaptureCore(Generic[F]):
         self.config = config
         self.mount = mount
         self.model = model
-        self.camera = camera
+        self.camera: CameraModel | None = None
+        if camera is not None:
+            self.set_camera(camera)
         self._to_gray = to_gray
         self.frames: FrameBuffer[F] = FrameBuffer(60)
         self.joint_names = mount.joint_names if isinstance(mount, CameraMount) else ()
@@ -201,6 +210,14 @@ class CaptureCore(Generic[F]):
 
     # -- inputs --------------------------------------------------------------------------
     def set_camera(self, camera: CameraModel) -> None:
+        """The camera's model (its ``camera_info`` or calibration file), with what this
+        imager was told of its response and exposure over what the model says (a driver's
+        ``camera_info`` carries neither)."""
+        c = self.config
+        if c.gamma > 0.0 and c.gamma != camera.gamma:
+            camera = replace(camera, gamma=c.gamma)
+        if c.exposure_time > 0.0 and c.exposure_time != camera.exposure_time:
+            camera = replace(camera, exposure_time=c.exposure_time)
         self.camera = camera
 
     def request(
@@ -314,9 +331,7 @@ class CaptureCore(Generic[F]):
             c.inject_flip,
             r.position if c.several_objects else None,
             # The marker's motion over the exposure, taken out of its ellipse.
-            image_streak(self.camera, T, r.position, r.velocity, c.exposure_time or None)
-            if c.motion_correction
-            else None,
+            image_streak(self.camera, T, r.position, r.velocity) if c.motion_correction else None,
         )
         obs = replace(
             obs,

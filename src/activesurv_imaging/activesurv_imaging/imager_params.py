@@ -27,6 +27,14 @@ PARAMS = (
         minimum=0.0,
         maximum=1.0,
     ),
+    Param(
+        'gamma',
+        0.0,
+        "the camera's response, grey = 255 radiance^(1/gamma), undone before edges are "
+        "measured; 0: the calibration's (camera_info carries none)",
+        minimum=0.0,
+        maximum=5.0,
+    ),
     Param('motion_correction', True, "move a free-running frame's marker to the instant"),
     Param('free_reach', 3.25, 'free-running: periods the taken frame may be off', minimum=0.5),
     Param('velocity_std', 0.002, 'm/s: what the motion correction does not know', minimum=0.0),

@@ -91,3 +91,20 @@ def test_the_covariance_grows_with_the_streak_taken_out() -> None:
     # Nothing to take out without a velocity or an exposure time.
     assert image_streak(CAM, T, p, None) is None
     assert image_streak(replace(CAM, exposure_time=0.0), T, p, v) is None
+
+
+def test_the_imager_is_told_the_response_and_exposure_camera_info_lacks() -> None:
+    from activesurv_imaging.capture import CaptureCore, ImagerConfig
+
+    T = look_at([0.05, -0.5, 0.08], [0.0, 0.0, 0.05])
+    bare = dynamic_camera('cam1')  # as a driver's camera_info has it: no response, no exposure
+    told = ImagerConfig('cam1', gamma=2.2, exposure_time=0.008)
+    core = CaptureCore(told, T, SensorModel.load(None), lambda g: g, bare)
+    assert core.camera is not None
+    assert (core.camera.gamma, core.camera.exposure_time) == (2.2, 0.008)
+    core.set_camera(bare)  # a new camera_info: still what the imager was told
+    assert (core.camera.gamma, core.camera.exposure_time) == (2.2, 0.008)
+    plain = CaptureCore(ImagerConfig('cam1'), T, SensorModel.load(None), lambda g: g, CAM)
+    assert plain.camera is CAM  # told nothing: the calibration's own
+    with pytest.raises(Exception, match='gamma'):
+        ImagerConfig('cam1', gamma=9.0)

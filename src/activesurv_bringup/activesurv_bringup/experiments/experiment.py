@@ -194,13 +194,16 @@ class Experiment:
     def imager_config(self, camera_id: str, fault: Fault | None = None) -> ImagerConfig:
         """What camera ``camera_id``'s imager is told in this simulated experiment (with its
         injected fault, if any): its stages latch their state at each instant."""
-        # The exposure the camera is set to (the lab sets it; a streak is taken out over it).
+        # The exposure the camera is set to (the lab sets it; a streak is taken out over it)
+        # and its response as calibrated (commissioning estimates it).
         exposure = self.rig.rig.camera(camera_id).lens.exposure_time if self.rig else 0.0
+        gamma = self.rig.calibration.cameras[camera_id].gamma if self.rig else 0.0
         return ImagerConfig(
             camera_id,
             self.setup.marker_radius,
             exact_state=True,
             exposure_time=exposure,
+            gamma=gamma,
             obstacles=self.setup.obstacles,
             **imager_injection(fault),  # type: ignore[arg-type]
         )

@@ -194,12 +194,9 @@ def hardware_specs(
                     # A software-triggered driver: its Trigger service, called ahead.
                     'trigger_service': cam.software_trigger[0],
                     'trigger_lead': cam.software_trigger[1],
-                    # The commissioned intrinsics, whatever the driver's camera_info says.
-                    **(
-                        {'camera_info_file': str(commissioned)}
-                        if cam.source.kind == SourceKind.TOPIC and commissioned.is_file()
-                        else {}
-                    ),
+                    # The commissioned intrinsics (and response: camera_info carries none),
+                    # whatever the driver's camera_info says.
+                    **({'camera_info_file': str(commissioned)} if commissioned.is_file() else {}),
                 },
             )
         )

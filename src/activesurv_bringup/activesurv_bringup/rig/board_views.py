@@ -21,6 +21,7 @@ from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import BoardSighting, Station, order_like
+from activesurv_imaging.response import BoardReader
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.optics import frame_optics
 from activesurv_sim.render import Renderer, SensorNoise
@@ -119,8 +120,16 @@ def collect_stations(
     return stations
 
 
-def simulated_look(rig: Rig, camera_id: str, fixture: BoardFixture, seed: int = 0) -> Look:
-    """The rig's camera and table: where they really are, what the camera really sees."""
+def simulated_look(
+    rig: Rig,
+    camera_id: str,
+    fixture: BoardFixture,
+    seed: int = 0,
+    reader: BoardReader | None = None,
+) -> Look:
+    """The rig's camera and table: where they really are, what the camera really sees
+    (``reader``: finds the corners and keeps the edges, for the camera's response)."""
+    read = reader or BoardReader(fixture.squares)
     rc = rig.camera(camera_id)
     true_mount = rc.true_mount()
     renderer = Renderer(rc.camera)
@@ -131,8 +140,7 @@ def simulated_look(rig: Rig, camera_id: str, fixture: BoardFixture, seed: int = 
         scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
         T = true_mount.pose_from_joints(q)
         lens = frame_optics(rc.camera, rc.lens, T, scene.plates[0].center)  # at rest: no streak
-        image = renderer.render(T, scene, noise, rng, lens)
-        return find_corners(image, fixture.squares)
+        return read(renderer.render(T, scene, noise, rng, lens))
 
     return look
 

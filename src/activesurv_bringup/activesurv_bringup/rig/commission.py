@@ -61,6 +61,7 @@ from activesurv_imaging.commissioning import (
     pixel_error,
 )
 from activesurv_imaging.errors import CalibrationError
+from activesurv_imaging.response import BoardReader, GammaEstimate
 from activesurv_launch.launcher import Launcher, NodeSpec
 from activesurv_launch.session import GraphSession
 from activesurv_sim.board import BoardFixture
@@ -161,14 +162,16 @@ class Commissioner(Observer):
             trap_signals=False,
         )
 
-    def look(self, camera_id: str, fixture: BoardFixture) -> Look:
+    def look(
+        self, camera_id: str, fixture: BoardFixture, reader: BoardReader | None = None
+    ) -> Look:
         names = self.setup.sensor(camera_id).joint_names
+        read = reader or BoardReader(fixture.squares)
 
         def look(q: Array, x: float, y: float) -> Array | None:
             self.move(camera_id, names, q)
             self.move(TABLE_ID, TABLE_JOINTS, np.array([x, y]))
-            image = self.capture(camera_id, (camera_id, TABLE_ID))
-            return find_corners(image, fixture.squares)
+            return read(self.capture(camera_id, (camera_id, TABLE_ID)))
 
         return look
 
@@ -181,6 +184,25 @@ class Commissioner(Observer):
 
     def close(self) -> None:
         self.node.destroy_node()
+
+
+def with_response(
+    model: CameraModel, estimate: GammaEstimate | None
+) -> tuple[CameraModel, dict[str, Any]]:
+    """The camera with the response its board edges showed (the report's ``response``); kept
+    as it was when too few edges were blurred enough to show it (all views in focus)."""
+    if estimate is None:
+        says = f'gamma {model.gamma:g} kept (too few blurred board edges to estimate it)'
+        return model, {'gamma': None, 'kept': model.gamma, 'says': says}
+    gamma = round(estimate.gamma, 3)
+    says = f'gamma {gamma:.2f} +- {estimate.spread:.2f} from {estimate.profiles} edges'
+    report = {
+        'gamma': gamma,
+        'std': round(estimate.spread, 4),
+        'edges': estimate.profiles,
+        'says': says,
+    }
+    return replace(model, gamma=gamma), report
 
 
 def commission_dynamic(
@@ -363,7 +385,7 @@ def check_cameras(setup: Setup, cameras: Sequence[str] | None) -> list[str]:
 
 
 def commission_all(
-    dynamic: Callable[[str], tuple[Look, CameraModel]],
+    dynamic: Callable[[str, BoardReader], tuple[Look, CameraModel]],
     overhead_look: Callable[[float, float], Array | None],
     all_cameras: Sequence[str],
     chosen: Sequence[str],
@@ -377,7 +399,8 @@ def commission_all(
     """Commission ``chosen`` cameras (the rest keep nominal values) and the overhead camera.
 
     Args:
-        dynamic: per camera id, how it looks at the board and the intrinsics to start from.
+        dynamic: per camera id (and the reader its views go through), how it looks at the
+            board and the intrinsics to start from.
         overhead_look: the overhead camera looking at the top board at a table position.
         rig: the simulated truth, to report each estimate's error (None when live).
         stations: at most this many stations per dynamic camera (None: all).
@@ -395,10 +418,12 @@ def commission_all(
             report['cameras'][cid] = {'commissioned': False, 'reprojection_rms_px': None}
             continue
         t0 = time.monotonic()
-        look, start = dynamic(cid)
+        reader = BoardReader(fixture.squares)
+        look, start = dynamic(cid, reader)
         model, mount, rep = commission_dynamic(
             look, start, nominal_cal.mounts[cid], fixture, stations
         )
+        model, rep['response'] = with_response(model, reader.gamma())
         models[cid], mounts[cid] = model, mount
         rep['commissioned'] = True
         rep['seconds'] = round(time.monotonic() - t0, 1)
@@ -408,7 +433,8 @@ def commission_all(
         report['cameras'][cid] = rep
         progress(
             f'{cid}: {rep["sightings"]} board views at {rep["stations"]} stations, '
-            f'reprojection RMS {rep["reprojection_rms_px"]:.3f} px, {rep["seconds"]:.0f} s'
+            f'reprojection RMS {rep["reprojection_rms_px"]:.3f} px, response '
+            f'{rep["response"]["says"]}, {rep["seconds"]:.0f} s'
         )
     over, pose, rep = commission_overhead(
         overhead_look, nominal_cal.overhead, nominal_cal.overhead_pose, fixture
@@ -432,7 +458,7 @@ def commission_offline(
     fixture = BoardFixture()
     cameras = sorted(rig.cameras)
     return commission_all(
-        lambda c: (simulated_look(rig, c, fixture), nominal_cal.cameras[c]),
+        lambda c, r: (simulated_look(rig, c, fixture, reader=r), nominal_cal.cameras[c]),
         simulated_overhead_look(rig, fixture),
         cameras,
         cameras,
@@ -522,7 +548,7 @@ def _commission(
     # The boards the hardware file names (validated there); the simulator's otherwise.
     fixture = hardware.geometry.board if hardware is not None else BoardFixture()
     cal, report = commission_all(
-        lambda c: (com.look(c, fixture), com.camera_model(c, nominal_cal.cameras[c])),
+        lambda c, r: (com.look(c, fixture, r), com.camera_model(c, nominal_cal.cameras[c])),
         com.look_overhead(fixture),
         [s.camera_id for s in setup.sensors],
         chosen,

@@ -31,6 +31,19 @@ from activesurv_common.errors import CalibrationError
 Array = NDArray[np.float64]
 
 
+def thin_lens_sigma(
+    fx: float, focal_length: float, f_number: float, focus_distance: float, distance: ArrayLike
+) -> Array:
+    """Per-axis standard deviation (px) of the blur circle of points at ``distance`` m for a
+    thin lens of ``focal_length`` m at ``f_number`` focused at ``focus_distance`` m, on a camera
+    of ``fx`` px focal length: the circle's diameter ``fx (f / N) |d - d_f| / (d (d_f - f))``
+    px, a quarter of it (a uniform disc's per-axis std)."""
+    f, df = focal_length, focus_distance
+    d = np.maximum(np.asarray(distance, dtype=np.float64), f * 1.001)
+    circle = fx * (f / f_number) * np.abs(d - df) / (d * (df - f))
+    return np.asarray(circle / 4.0, dtype=np.float64)
+
+
 @dataclass(frozen=True)
 class CameraModel:
     """Intrinsics of one camera.
@@ -43,6 +56,8 @@ class CameraModel:
         gamma: the camera's response, ``grey = 255 (radiance / full scale)^(1 / gamma)``
             (1: linear; 2.2: an sRGB-like curve); the imager linearises frames with it.
         exposure_time: s the shutter is open (0: unknown); a moving marker is blurred over it.
+        f_number, focus_distance (m), focal_length (m): the lens as set (0: unknown); with
+            them the depth of field's blur at a distance is known (:meth:`defocus_sigma`).
     """
 
     width: int
@@ -52,6 +67,9 @@ class CameraModel:
     name: str = 'camera'
     gamma: float = 1.0
     exposure_time: float = 0.0
+    f_number: float = 0.0
+    focus_distance: float = 0.0
+    focal_length: float = 0.0
 
     def __post_init__(self) -> None:
         K = np.asarray(self.K, dtype=np.float64)
@@ -72,8 +90,29 @@ class CameraModel:
             raise CalibrationError(
                 f'{self.name}: exposure_time must be in [0, 1] s, got {self.exposure_time}'
             )
+        lens = (self.f_number, self.focus_distance, self.focal_length)
+        if not all(math.isfinite(v) and v >= 0.0 for v in lens) or (
+            any(lens) and not (all(lens) and self.focus_distance > self.focal_length)
+        ):
+            raise CalibrationError(
+                f'{self.name}: lens needs f_number, focus_distance > focal_length > 0 '
+                f'(all three, or none), got {lens}'
+            )
         object.__setattr__(self, 'K', K)
         object.__setattr__(self, 'dist', np.pad(dist, (0, max(0, 5 - dist.size))))
+
+    @property
+    def has_lens(self) -> bool:
+        """Whether the lens settings are known (the depth of field can be predicted)."""
+        return self.f_number > 0.0
+
+    def defocus_sigma(self, distance: ArrayLike) -> Array:
+        """Per-axis standard deviation (px) of the depth of field's blur of points at
+        ``distance`` m (zeros when the lens is unknown): :func:`thin_lens_sigma`."""
+        d = np.asarray(distance, dtype=np.float64)
+        if not self.has_lens:
+            return np.zeros_like(d)
+        return thin_lens_sigma(self.fx, self.focal_length, self.f_number, self.focus_distance, d)
 
     @property
     def fx(self) -> float:
@@ -170,6 +209,17 @@ class CameraModel:
             # not the defaults, so that a linear camera's file is camera_calibration's own.
             **({'response': {'gamma': float(self.gamma)}} if self.gamma != 1.0 else {}),
             **({'exposure_time': float(self.exposure_time)} if self.exposure_time else {}),
+            **(
+                {
+                    'lens': {
+                        'f_number': float(self.f_number),
+                        'focus_distance': float(self.focus_distance),
+                        'focal_length': float(self.focal_length),
+                    }
+                }
+                if self.has_lens
+                else {}
+            ),
         }
 
     @staticmethod
@@ -192,6 +242,10 @@ class CameraModel:
                 str(data.get('camera_name', 'camera')),
                 float((data.get('response') or {}).get('gamma', 1.0)),
                 float(data.get('exposure_time', 0.0)),
+                *(
+                    float((data.get('lens') or {}).get(k, 0.0))
+                    for k in ('f_number', 'focus_distance', 'focal_length')
+                ),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f'malformed camera calibration: {exc!r}') from exc

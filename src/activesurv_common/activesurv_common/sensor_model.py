@@ -19,6 +19,13 @@ blocks: ``R_world = blkdiag(Rc S_pos Rc^T, Rc S_n Rc^T)``. The Frobenius norm, a
 visibility ``1 / ||R||``, is the same in both frames. Units are SI: m^2 for positions and the
 square of a unit-vector component for the normal.
 
+**Blur** (issue 33: real optics) is a third factor beside d and theta: the marker's image blur
+``b`` (px, per-axis standard deviation of the isotropic blur: the depth of field's, plus a motion
+streak's ``L / sqrt(12)`` in quadrature) multiplies each variance by ``(1 + (b / B0)^2)^cb``
+(``B0`` = 1 px, ``cb`` per variable, :attr:`SensorModel.blur_coefficients`; zero in a model
+measured without optics, which then says what it always said). ``b`` is evaluated up to
+:data:`MAX_BLUR` (beyond, the marker is not measured reliably at all).
+
 Outside the fitted (d, theta) ranges the surfaces are evaluated at the nearest point of the
 range (no extrapolation). Bearings beyond ``max_bearing``, or a marker outside the image, make
 the camera blind to the target: :func:`view_geometry` says so and the visibility is 0.
@@ -46,6 +53,22 @@ VARIABLES = ('x', 'y', 'z', 'n_x', 'n_y', 'n_z')
 
 THETA0 = math.radians(3.0)
 N_TERMS = 7
+B0 = 1.0  # px: the blur at which the blur factor is 2^cb
+MAX_BLUR = 12.0  # px
+
+
+def blur_term(blur: ArrayLike) -> Array:
+    """``log(1 + (b / B0)^2)`` of the blur ``b`` (px, clipped to [0, MAX_BLUR])."""
+    b = np.clip(np.nan_to_num(np.asarray(blur, dtype=np.float64), nan=0.0), 0.0, MAX_BLUR)
+    return np.asarray(np.log1p((b / B0) ** 2), dtype=np.float64)
+
+
+def image_blur(defocus: ArrayLike, streak: ArrayLike = 0.0) -> Array:
+    """The isotropic blur (px) a defocus (px, std) and a streak (px, length) amount to: the
+    streak's uniform smear has the standard deviation ``L / sqrt(12)``."""
+    d = np.asarray(defocus, dtype=np.float64)
+    s = np.asarray(streak, dtype=np.float64)
+    return np.asarray(np.sqrt(d * d + s * s / 12.0), dtype=np.float64)
 
 
 def design_row(d: float, theta: float) -> Array:
@@ -63,6 +86,10 @@ class SensorModel:
         theta_range: (min, max) bearing covered by the experiment (rad).
         max_bearing: bearing beyond which the marker is not measurable (rad).
         samples: optional raw experiment data, kept for plots and reports.
+        blur_coefficients: (6,) ``cb`` of the blur factor (zeros: blur not modelled).
+        blur_base: px, the blur a sharp view's edges show (the lens's own and the pixel's:
+            what the d-theta surfaces already hold); a measured edge blur beyond it is ``b``
+            (:meth:`blur_of`).
     """
 
     coefficients: Array
@@ -70,6 +97,8 @@ class SensorModel:
     theta_range: tuple[float, float]
     max_bearing: float = math.radians(75.0)
     samples: dict[str, Any] = field(default_factory=dict)
+    blur_coefficients: Array = field(default_factory=lambda: np.zeros(6))
+    blur_base: float = 0.0
 
     def __post_init__(self) -> None:
         c = np.asarray(self.coefficients, dtype=np.float64)
@@ -78,14 +107,31 @@ class SensorModel:
                 f'coefficients must be a finite 6x{N_TERMS} array, got {c.shape}'
             )
         object.__setattr__(self, 'coefficients', c)
+        cb = np.asarray(self.blur_coefficients, dtype=np.float64).reshape(-1)
+        if cb.shape != (6,) or not np.all(np.isfinite(cb)) or np.any(cb < 0.0):
+            raise SensorModelError(f'blur_coefficients must be 6 finite values >= 0, got {cb}')
+        object.__setattr__(self, 'blur_coefficients', cb)
         (d0, d1), (t0, t1) = self.d_range, self.theta_range
         if not (0.0 < d0 < d1 and 0.0 <= t0 < t1 <= math.pi / 2):
             raise SensorModelError(f'invalid ranges d={self.d_range} theta={self.theta_range}')
         if not 0.0 < self.max_bearing < math.pi / 2:
             raise SensorModelError('max_bearing must be in (0, pi/2)')
 
-    def variances(self, d: float, theta: float) -> Array:
-        """The six variances (camera frame) at distance ``d`` and bearing ``theta``.
+    def blur_of(self, edge_blur: float, streak: float = 0.0) -> float:
+        """``b`` (px) of a view whose edges showed ``edge_blur`` px (the detector's isotropic
+        estimate) and whose marker streaked ``streak`` px over the exposure."""
+        e = float(edge_blur) if math.isfinite(edge_blur) else 0.0
+        extra = math.sqrt(max(e * e - self.blur_base**2, 0.0))
+        return float(image_blur(extra, float(streak) if math.isfinite(streak) else 0.0))
+
+    @property
+    def models_blur(self) -> bool:
+        """Whether blur changes the variances (a model measured with optics)."""
+        return bool(np.any(self.blur_coefficients > 0.0))
+
+    def variances(self, d: float, theta: float, blur: float = 0.0) -> Array:
+        """The six variances (camera frame) at distance ``d``, bearing ``theta`` and image
+        blur ``blur`` (px: :func:`image_blur`).
 
         Raises:
             SensorModelError: for non-finite or negative arguments.
@@ -94,25 +140,36 @@ class SensorModel:
             raise SensorModelError(f'need finite d > 0 and theta >= 0, got d={d}, theta={theta}')
         dc = min(max(d, self.d_range[0]), self.d_range[1])
         tc = min(max(theta, self.theta_range[0]), self.theta_range[1])
-        return np.asarray(np.exp(self.coefficients @ design_row(dc, tc)), dtype=np.float64)
+        log_v = self.coefficients @ design_row(dc, tc)
+        if blur:
+            log_v = log_v + self.blur_coefficients * float(blur_term(blur))
+        return np.asarray(np.exp(log_v), dtype=np.float64)
 
-    def variances_batch(self, d: ArrayLike, theta: ArrayLike) -> Array:
-        """Vectorised :meth:`variances`: (N,) distances and bearings -> (N, 6) variances."""
+    def variances_batch(
+        self, d: ArrayLike, theta: ArrayLike, blur: ArrayLike | None = None
+    ) -> Array:
+        """Vectorised :meth:`variances`: (N,) distances, bearings (and blurs, px) -> (N, 6)
+        variances."""
         dc = np.clip(np.asarray(d, dtype=np.float64), *self.d_range)
         tc = np.clip(np.asarray(theta, dtype=np.float64), *self.theta_range)
         basis = np.stack(
             [np.ones_like(dc), dc, tc, dc * dc, dc * tc, tc * tc, np.log(tc + THETA0)], axis=-1
         )
-        return np.asarray(np.exp(basis @ self.coefficients.T), dtype=np.float64)
+        log_v = basis @ self.coefficients.T
+        if blur is not None and self.models_blur:
+            log_v = log_v + blur_term(blur)[..., None] * self.blur_coefficients
+        return np.asarray(np.exp(log_v), dtype=np.float64)
 
-    def covariance(self, d: float, theta: float) -> Array:
+    def covariance(self, d: float, theta: float, blur: float = 0.0) -> Array:
         """6x6 diagonal covariance in the camera optical frame."""
-        return np.diag(self.variances(d, theta))
+        return np.diag(self.variances(d, theta, blur))
 
-    def world_covariance(self, d: float, theta: float, R_world_camera: ArrayLike) -> Array:
+    def world_covariance(
+        self, d: float, theta: float, R_world_camera: ArrayLike, blur: float = 0.0
+    ) -> Array:
         """6x6 covariance over (x, y, z, n_x, n_y, n_z) in the world frame."""
         R = np.asarray(R_world_camera, dtype=np.float64)
-        v = self.variances(d, theta)
+        v = self.variances(d, theta, blur)
         out = np.zeros((6, 6))
         out[:3, :3] = R @ np.diag(v[:3]) @ R.T
         out[3:, 3:] = R @ np.diag(v[3:]) @ R.T
@@ -134,6 +191,19 @@ class SensorModel:
                     name: [float(v) for v in row]
                     for name, row in zip(VARIABLES, self.coefficients, strict=True)
                 },
+                **(
+                    {
+                        'blur_description': 'variance x (1 + (b / 1 px)^2)^cb; b: image blur '
+                        '(px std: defocus, streak length / sqrt 12)',
+                        'blur_coefficients': {
+                            name: float(v)
+                            for name, v in zip(VARIABLES, self.blur_coefficients, strict=True)
+                        },
+                        'blur_base': float(self.blur_base),
+                    }
+                    if self.models_blur
+                    else {}
+                ),
                 'samples': self.samples,
             }
         }
@@ -143,12 +213,15 @@ class SensorModel:
         try:
             m = data['sensor_model']
             coeffs = np.array([m['log_variance_coefficients'][v] for v in VARIABLES], dtype=float)
+            blur = m.get('blur_coefficients') or {}
             return SensorModel(
                 coeffs,
                 tuple(m['d_range']),
                 tuple(m['theta_range']),
                 float(m.get('max_bearing', math.radians(75.0))),
                 dict(m.get('samples') or {}),
+                np.array([float(blur.get(v, 0.0)) for v in VARIABLES]),
+                float(m.get('blur_base', 0.0)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise SensorModelError(f'malformed sensor model: {exc!r}') from exc

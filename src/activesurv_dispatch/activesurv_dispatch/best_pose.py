@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.geometry import bearings
 from activesurv_common.occlusion import Obstacle, blocked, inflate
-from activesurv_common.sensor_model import SensorModel
+from activesurv_common.sensor_model import SensorModel, image_blur
 from activesurv_dispatch.sensors import Sensor
 from activesurv_dispatch.visibility import fused_visibility, visibility_from_variances
 from activesurv_stages.kinematics import reachable_distance
@@ -43,9 +43,31 @@ class Target:
     position: Array
     normal: Array
     sigma: float = 0.0
+    velocity: Array | None = None  # m/s at the instant: the streak a view would see
 
 
 VIEW_SIGMAS = 2.0
+
+
+def predicted_blur(
+    sensor: Sensor, target: Target, rel: Array, d: Array, model: SensorModel
+) -> Array | None:
+    """The image blur (px, the sensor model's ``b``) each camera at ``rel = target - centre``
+    (N, 3), ``d`` away, would see: the depth of field's at that distance (the calibration's lens
+    settings) and the streak of the target's motion across the line of sight over the exposure;
+    None when the model does not weigh blur."""
+    if not model.models_blur:
+        return None
+    cam = sensor.camera
+    defocus = cam.defocus_sigma(d)
+    streak = np.zeros_like(d)
+    if target.velocity is not None and cam.exposure_time > 0.0:
+        v = np.asarray(target.velocity, dtype=np.float64).reshape(-1)
+        v = np.r_[v, 0.0] if v.shape == (2,) else v
+        ray = rel / np.maximum(d, 1e-9)[:, None]
+        across = v[None, :] - (ray @ v)[:, None] * ray
+        streak = cam.fx * np.linalg.norm(across, axis=1) * cam.exposure_time / np.maximum(d, 1e-9)
+    return image_blur(defocus, streak)
 
 
 @dataclass(frozen=True)
@@ -100,7 +122,8 @@ def view_batch(
     if occluders:
         grown = inflate(occluders, radius + VIEW_SIGMAS * target.sigma)
         in_view &= ~blocked(centres, target.position, grown)
-    vis = visibility_from_variances(model.variances_batch(d, bearing))
+    blur = predicted_blur(sensor, target, rel, d, model)
+    vis = visibility_from_variances(model.variances_batch(d, bearing, blur))
     return np.where(in_view, vis, 0.0), d, bearing, in_view
 
 
@@ -177,7 +200,7 @@ def best_achievable_pose(
         return best_achievable_pose(
             sensor,
             q0,
-            Target(target.position, target.normal, 0.0),
+            Target(target.position, target.normal, 0.0, target.velocity),
             dt,
             model,
             radius,
@@ -227,6 +250,8 @@ def visibility_at_poses(
         )
         if only_in_view and not inside[0]:
             continue
-        _, R = camera_frames(s, qq)
-        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0]))
+        centres, R = camera_frames(s, qq)
+        blur = predicted_blur(s, target, target.position[None, :] - centres, d, model)
+        b_px = 0.0 if blur is None else float(blur[0])
+        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0], b_px))
     return fused_visibility(Rs)

@@ -96,7 +96,8 @@ class Demand:
     def target(self) -> Target:
         """The target with its lateral (x, y) prediction uncertainty."""
         c = self.covariance
-        return Target(self.position, self.normal, float(np.sqrt(max(c[0, 0], c[1, 1], 0.0))))
+        sigma = float(np.sqrt(max(c[0, 0], c[1, 1], 0.0)))
+        return Target(self.position, self.normal, sigma, self.velocity)
 
     def sigma(self) -> Array:
         return np.sqrt(np.maximum(np.diag(self.covariance)[:3], 0.0))
@@ -540,7 +541,7 @@ class DispatchPlanner:
         stage's whole range, the aimed pose in view with the least travel time (rest to rest,
         the slower axis deciding); the stages move there at full speed."""
         s = self.sensors[camera_id]
-        target = Target(demand.position, demand.normal, 0.0)
+        target = Target(demand.position, demand.normal, 0.0, demand.velocity)
         if s.has_linear:
             lim = s.limits[0]
             lin = np.unique(

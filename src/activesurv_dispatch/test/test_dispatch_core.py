@@ -345,3 +345,41 @@ def test_a_replan_that_sees_nothing_keeps_the_pose_that_points_nearer() -> None:
     seeing = best_achievable_pose(cam, np.array([aim]), sharp.target, 0.0, MODEL, 0.0125)
     assert seeing.visibility > 0.0
     assert np.allclose(planner._better(cam.camera_id, near, seeing, sharp).joints, aim)
+
+
+def test_the_best_pose_prefers_a_view_in_focus_and_across_less_motion() -> None:
+    """cam1 on its linear stage sees the target from 0.53 to 0.71 m and likes 0.56 m best
+    without optics; with its lens at f/2 focused at 0.60 or 0.68 m the best view moves to the
+    distance in focus; a fast target's streak lowers the views' visibility."""
+    from dataclasses import replace
+
+    setup = load_setup(motion='fast')
+    s = setup.sensor('cam1')
+    q0 = np.array([0.15, -0.5])
+    target = Target(np.array([0.24, 0.06, 0.05]), NORMAL)
+    lims = s.limits
+    grid = np.array(
+        [
+            [a, b]
+            for a in np.linspace(lims[0].min_position, lims[0].max_position, 31)
+            for b in np.linspace(lims[1].min_position, lims[1].max_position, 121)
+        ]
+    )
+    plain = view_batch(s, grid, target, setup.marker_radius, MODEL)
+    assert abs(plain[1][int(np.argmax(plain[0]))] - 0.56) < 0.01
+    for focus in (0.60, 0.68):
+        cam = replace(s.camera, f_number=2.0, focus_distance=focus, focal_length=0.025)
+        lensed = replace(s, camera=cam)
+        vis, d, _, _ = view_batch(lensed, grid, target, setup.marker_radius, MODEL)
+        assert np.all(vis <= plain[0] + 1e-18)  # blur never helps
+        assert abs(d[int(np.argmax(vis))] - focus) < 0.015
+        found = best_achievable_pose(lensed, q0, target, 3.0, MODEL, setup.marker_radius)
+        assert found.in_view
+        assert abs(found.distance - focus) < 0.03
+    exposed = replace(s, camera=replace(s.camera, exposure_time=0.02))
+    fast = Target(target.position, NORMAL, 0.0, np.array([0.3, 0.0, 0.0]))
+    slow = Target(target.position, NORMAL, 0.0, np.array([0.0, 0.0, 0.0]))
+    v_fast = view_batch(exposed, grid, fast, setup.marker_radius, MODEL)[0]
+    v_slow = view_batch(exposed, grid, slow, setup.marker_radius, MODEL)[0]
+    assert np.all(v_fast <= v_slow + 1e-18)
+    assert v_fast.max() < v_slow.max()

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -225,7 +225,8 @@ def refine(
     def model_of(x: Array) -> CameraModel:
         K = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
         dist = np.array([x[4], 0.0, 0.0, 0.0, 0.0])
-        return CameraModel(camera.width, camera.height, K, dist, camera.name)
+        # Response, exposure and lens settings are not fitted here: kept as they were.
+        return replace(camera, K=K, dist=dist)
 
     def raw(x: Array) -> list[Array]:
         cam, m = model_of(x[:5]), _mount(mount, x[5:])

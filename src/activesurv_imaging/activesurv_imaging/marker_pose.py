@@ -50,6 +50,7 @@ class MarkerMeasurement:
         margin: radians by which the chosen normal is closer to the prior than the other.
         swept: the ellipse as measured when a streak was taken out of it (``ellipse`` is
             then the marker at mid-exposure, unswept: :mod:`activesurv_imaging.streak`).
+        blur_sigma: px, the isotropic blur its edges showed (lens, focus, pixel).
     """
 
     status: MeasurementStatus
@@ -59,6 +60,7 @@ class MarkerMeasurement:
     chosen: int = 0
     margin: float = 0.0
     swept: Ellipse | None = None
+    blur_sigma: float = 0.0
 
     @property
     def pose(self) -> CirclePose | None:
@@ -135,7 +137,13 @@ def measure_marker(
     try:
         poses = circle_poses(ellipse, camera.K, radius)
     except CirclePoseError as exc:
-        return MarkerMeasurement(MeasurementStatus.POSE_FAILED, str(exc), ellipse, swept=swept)
+        return MarkerMeasurement(
+            MeasurementStatus.POSE_FAILED,
+            str(exc),
+            ellipse,
+            swept=swept,
+            blur_sigma=det.blur_sigma,
+        )
     if prior_normal is None:
         # Without a prior, prefer the pose seen more frontally (the smaller bearing).
         views = [float(p.normal @ (-p.center / np.linalg.norm(p.center))) for p in poses]
@@ -143,4 +151,6 @@ def measure_marker(
         margin = 0.0
     else:
         chosen, margin = choose_pose(poses, prior_normal)
-    return MarkerMeasurement(MeasurementStatus.OK, '', ellipse, poses, chosen, margin, swept)
+    return MarkerMeasurement(
+        MeasurementStatus.OK, '', ellipse, poses, chosen, margin, swept, det.blur_sigma
+    )

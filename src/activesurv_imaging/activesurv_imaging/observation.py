@@ -43,6 +43,7 @@ class Observation:
     motion_correction: Array | None = None  # m added for the object's motion over the offset
     compute_time: float = 0.0  # s: processing of the frame (detect, fit, pose)
     streak: Array | None = None  # px the marker's image moved over the exposure (taken out)
+    blur: float = 0.0  # px: the view's blur beyond a sharp view's (the sensor model's b)
 
 
 def failed(
@@ -160,7 +161,10 @@ def observe_marker(
     c, n = pose.center, pose.normal
     d = float(np.linalg.norm(c))
     theta = bearing(-c, n)  # the camera is at the origin of its frame
-    cov = model.world_covariance(d, theta, T_world_camera.R)
+    # The view's blur (its edges' and its streak's): a blurred marker is measured less well.
+    length = 0.0 if streak is None else float(np.hypot(*np.asarray(streak, dtype=np.float64)))
+    blur = model.blur_of(m.blur_sigma, length) if model.models_blur else 0.0
+    cov = model.world_covariance(d, theta, T_world_camera.R, blur)
     left = _streak_variance(m, d)
     if left > 0.0:
         ray = T_world_camera.rotate(c / d)
@@ -182,6 +186,7 @@ def observe_marker(
         bearing=theta,
         camera_pose=T_world_camera,
         streak=None if m.swept is None else np.asarray(streak, dtype=np.float64).reshape(2),
+        blur=blur,
     )
 
 

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from activesurv_common.camera_model import CameraModel
+from activesurv_common.camera_model import CameraModel, thin_lens_sigma
 from activesurv_common.geometry import Transform
 from activesurv_sim.errors import SimError
 from activesurv_sim.render import IDEAL_OPTICS, FrameOptics
@@ -85,10 +85,9 @@ class Optics:
     def defocus_sigma(self, fx: float, distance: float) -> float:
         """Per-axis standard deviation (px) of the blur circle of a point ``distance`` m from
         the lens, for a camera of ``fx`` px focal length."""
-        d = max(float(distance), self.focal_length * 1.001)
-        f, df = self.focal_length, self.focus_distance
-        circle = fx * (f / self.f_number) * abs(d - df) / (d * (df - f))
-        return circle / 4.0
+        return float(
+            thin_lens_sigma(fx, self.focal_length, self.f_number, self.focus_distance, distance)
+        )
 
     def depth_of_field(self, fx: float, max_sigma: float = 1.0) -> tuple[float, float]:
         """The distances (m) between which the defocus blur stays within ``max_sigma`` px."""

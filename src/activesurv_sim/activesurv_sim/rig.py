@@ -229,7 +229,14 @@ class Rig:
         return Calibration(
             f'truth of {self.name}',
             {
-                c: replace(rc.camera, gamma=rc.lens.gamma, exposure_time=rc.lens.exposure_time)
+                c: replace(
+                    rc.camera,
+                    gamma=rc.lens.gamma,
+                    exposure_time=rc.lens.exposure_time,
+                    f_number=rc.lens.f_number,
+                    focus_distance=rc.lens.focus_distance,
+                    focal_length=rc.lens.focal_length,
+                )
                 for c, rc in self.cameras.items()
             },
             {c: rc.mount for c, rc in self.cameras.items()},

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from activesurv_bringup.errors import ConfigError
@@ -17,6 +18,7 @@ from activesurv_bringup.rig.rigs import (
     resolve_calibration,
     resolve_rig,
 )
+from activesurv_common.calibration import Calibration
 from activesurv_sim.rig import Rig
 
 # What commissioning a simulated rig takes on a two-core machine (measured: 4-6 min).
@@ -70,6 +72,26 @@ def choose(
         if cache is None:
             raise ConfigError('commissioning needs a directory for its calibration')
         cal_choice = str(commissioned(cache, the_rig, progress))
-    cal = resolve_calibration(cal_choice, the_rig)
+    cal = with_lens_settings(resolve_calibration(cal_choice, the_rig), the_rig)
     label = cal_choice if cal_choice in CALIBRATIONS else str(Path(cal_choice).resolve())
     return RigChoice(the_rig, source, cal, label)
+
+
+def with_lens_settings(cal: Calibration, rig: Rig) -> Calibration:
+    """``cal`` with each camera's lens settings (f-number, focus distance, focal length) and
+    exposure time where it has none: what the lab set its cameras to, known as the settings
+    are, not measured (commissioning fits intrinsics and the response; a driver's camera_info
+    carries neither)."""
+    cameras = {}
+    for cid, cam in cal.cameras.items():
+        lens = rig.camera(cid).lens if cid in rig.cameras else None
+        if lens is not None and not cam.has_lens:
+            cam = replace(
+                cam,
+                f_number=lens.f_number,
+                focus_distance=lens.focus_distance,
+                focal_length=lens.focal_length,
+                exposure_time=cam.exposure_time or lens.exposure_time,
+            )
+        cameras[cid] = cam
+    return replace(cal, cameras=cameras)

@@ -34,6 +34,7 @@ the camera blind to the target: :func:`view_geometry` says so and the visibility
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -243,7 +244,12 @@ class SensorModel:
 
 
 def default_model_path() -> Path:
-    """The sensor model measured for the default dynamic camera (shipped as package data)."""
+    """The sensor model measured for the default dynamic camera (shipped as package data), or
+    the file ``ACTIVESURV_SENSOR_MODEL`` names (a study's switch: every node of a run that
+    inherits the environment then loads that model, e.g. one without the blur factor)."""
+    chosen = os.environ.get('ACTIVESURV_SENSOR_MODEL', '')
+    if chosen:
+        return Path(chosen)
     return Path(__file__).resolve().parent / 'data' / 'sensor_model.yaml'
 
 

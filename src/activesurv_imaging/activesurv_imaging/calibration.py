@@ -43,6 +43,22 @@ def board_points(squares: tuple[int, int], square_size: float) -> Array:
 HALF_WINDOW = 0.45  # of a square: the refinement window's half-width (5-15 px)
 
 
+def refine_corners(image: ArrayLike, corners: ArrayLike) -> Array:
+    """``corners`` (N, 2, row-major on the board) refined to sub-pixel in ``image``, in their
+    order."""
+    img = as_gray8(image)
+    rough = np.asarray(corners, dtype=np.float32).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
+    # The refinement window spans most of a square: a corner blurred by the depth of field (a
+    # board nearer or farther than the focus) has its saddle spread over more than the usual
+    # 11 x 11 pixels. Measured (offline commissioning, f/4, perturbed rig 3): reprojection RMS
+    # 0.27-0.49 -> 0.11-0.19 px, principal point 9-14 -> 1-3 px off; no change on sharp views.
+    square_px = float(np.median(np.linalg.norm(np.diff(rough.reshape(-1, 2), axis=0), axis=1)))
+    half = int(np.clip(round(HALF_WINDOW * square_px), 5, 15))
+    out = cv2.cornerSubPix(img, rough.copy(), (half, half), (-1, -1), criteria)
+    return np.asarray(out.reshape(-1, 2), dtype=np.float64)
+
+
 def find_corners(image: ArrayLike, squares: tuple[int, int]) -> Array | None:
     """Sub-pixel inner corners in the order of :func:`board_points`, or None if not found."""
     img = as_gray8(image)
@@ -52,16 +68,7 @@ def find_corners(image: ArrayLike, squares: tuple[int, int]) -> Array | None:
     )
     if not found:
         return None
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-    # The refinement window spans most of a square: a corner blurred by the depth of field (a
-    # board nearer or farther than the focus) has its saddle spread over more than the usual
-    # 11 x 11 pixels. Measured (offline commissioning, f/4, perturbed rig 3): reprojection RMS
-    # 0.27-0.49 -> 0.11-0.19 px, principal point 9-14 -> 1-3 px off; no change on sharp views.
-    rough = corners.reshape(-1, 2)
-    square_px = float(np.median(np.linalg.norm(np.diff(rough, axis=0), axis=1)))
-    half = int(np.clip(round(HALF_WINDOW * square_px), 5, 15))
-    corners = cv2.cornerSubPix(img, corners, (half, half), (-1, -1), criteria)
-    pts = corners.reshape(-1, 2).astype(np.float64)
+    pts = refine_corners(img, corners.reshape(-1, 2))
     # OpenCV may start from either end of the board (a 180 degree turn). The square diagonally
     # outside the first corner is square (0, 0), which is dark: check, and reverse if not.
     cols = pattern[0]

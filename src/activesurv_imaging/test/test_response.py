@@ -62,3 +62,18 @@ def test_bad_corner_lists_are_refused() -> None:
         edge_samples(img, np.zeros((5, 2)), SQUARES)
     with pytest.raises(ValueError, match='8-bit'):
         edge_samples(img.astype(np.float32), np.zeros((54, 2)), SQUARES)
+
+
+def test_corners_are_refined_again_in_linear_radiance_in_their_order() -> None:
+    reader = BoardReader(SQUARES)
+    img = board(2.2, 2.5)
+    corners = reader(img)
+    assert corners is not None
+    again = reader.linearised(corners, 2.2)
+    assert again.shape == corners.shape
+    assert np.abs(again - corners).max() < 0.5  # the same corners, refined again
+    backwards = reader.linearised(corners[::-1], 2.2)
+    assert np.allclose(backwards, again[::-1], atol=1e-6)  # the caller's order is kept
+    assert np.allclose(reader.linearised(corners, 1.0), corners, atol=1e-6)
+    elsewhere = corners + 5.0  # not a kept view's corners: left as they are
+    assert np.array_equal(reader.linearised(elsewhere, 2.2), elsewhere)

@@ -211,6 +211,7 @@ def commission_dynamic(
     nominal_mount: CameraMount,
     fixture: BoardFixture,
     stations_limit: int | None = None,
+    reader: BoardReader | None = None,
 ) -> tuple[CameraModel, CameraMount, dict[str, Any]]:
     """One dynamic camera: stations, fit, and the eq. C1 check; returns (model, mount, report).
 
@@ -219,8 +220,22 @@ def commission_dynamic(
         start: the intrinsics to start from (what the driver says, or nominal).
         nominal_mount: the mount as designed.
         stations_limit: at most this many stations (None: every one of the procedure).
+        reader: the views ``look`` went through: with a response estimated from them (a
+            gamma other than 1), every corner is refined again in linear radiance.
     """
     stations = collect_stations(look, start, nominal_mount, fixture, limit=stations_limit)
+    estimate = reader.gamma() if reader is not None else None
+    if reader is not None and estimate is not None and abs(estimate.gamma - 1.0) > 0.05:
+        g = estimate.gamma
+        stations = [
+            replace(
+                st,
+                sightings=tuple(
+                    replace(v, corners=reader.linearised(v.corners, g)) for v in st.sightings
+                ),
+            )
+            for st in stations
+        ]
     board = board_corners(fixture)
     fit = commission_camera(start, nominal_mount, stations, board)
     model, mount = fit.camera, fit.mount
@@ -421,7 +436,7 @@ def commission_all(
         reader = BoardReader(fixture.squares)
         look, start = dynamic(cid, reader)
         model, mount, rep = commission_dynamic(
-            look, start, nominal_cal.mounts[cid], fixture, stations
+            look, start, nominal_cal.mounts[cid], fixture, stations, reader
         )
         model, rep['response'] = with_response(model, reader.gamma())
         models[cid], mounts[cid] = model, mount

@@ -129,7 +129,7 @@ def default_calibration() -> str | None:
     return os.environ.get('ACTIVESURV_CALIBRATION') or None
 
 
-COMMISSIONING = 3  # the procedure's version: 2 refines corners through blur, 3 estimates gamma
+COMMISSIONING = 4  # the procedure's version: 2 corners through blur, 3 gamma, 4 linearised corners
 
 
 def calibration_dir(cache: Path, rig: Rig) -> Path:

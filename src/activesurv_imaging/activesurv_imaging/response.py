@@ -49,7 +49,7 @@ class GammaEstimate:
     spread: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EdgeSamples:
     """Pixels near the board's edges: for each edge (between two neighbouring inner corners)
     its pixels' grey levels and their signed distances across it (px, dark side negative).
@@ -63,6 +63,17 @@ class EdgeSamples:
     across: NDArray[np.float32]
     grey: NDArray[np.uint8]
     half: float
+    # The binning across the edge, the same for every gamma (computed once).
+    _flat: NDArray[np.int64] = field(init=False, repr=False, compare=False)
+    _count: NDArray[np.int64] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        nbins = max(math.floor(2.0 * self.half / BIN), 2)
+        idx = np.clip(((self.across + self.half) / BIN).astype(np.int64), 0, nbins - 1)
+        flat = (idx + np.arange(len(self.across))[:, None] * nbins).ravel()
+        count = np.bincount(flat, minlength=len(self.across) * nbins).reshape(-1, nbins)
+        object.__setattr__(self, '_flat', flat)
+        object.__setattr__(self, '_count', count)
 
     def __len__(self) -> int:
         return len(self.across)
@@ -125,13 +136,11 @@ def profiles(samples: EdgeSamples, gamma: float) -> Array:
     """(E, K) each edge's profile in linear radiance (``gamma`` undone), binned at
     :data:`BIN` across the edge from ``-half`` to ``half``, normalised between its plateaus
     (the outer sixth either side); empty bins are interpolated."""
-    lin = (samples.grey.astype(np.float64) / 255.0) ** gamma
-    nbins = math.floor(2.0 * samples.half / BIN)
-    idx = np.clip(((samples.across + samples.half) / BIN).astype(np.int64), 0, nbins - 1)
-    rows = np.arange(len(lin))[:, None] * nbins
-    flat = (idx + rows).ravel()
-    total = np.bincount(flat, lin.ravel(), minlength=len(lin) * nbins).reshape(-1, nbins)
-    count = np.bincount(flat, minlength=len(lin) * nbins).reshape(-1, nbins)
+    lut = (np.arange(256, dtype=np.float64) / 255.0) ** gamma
+    lin = lut[samples.grey]
+    count = samples._count
+    nbins = count.shape[1]
+    total = np.bincount(samples._flat, lin.ravel(), minlength=count.size).reshape(-1, nbins)
     with np.errstate(invalid='ignore', divide='ignore'):
         prof = total / count
     centres = -samples.half + BIN * (np.arange(nbins) + 0.5)
@@ -191,7 +200,7 @@ def estimate_gamma(samples: Sequence[EdgeSamples]) -> GammaEstimate | None:
     def median_asymmetry(g: float) -> float:
         return float(np.nanmedian(np.concatenate([asymmetry(s, g) for s in views])))
 
-    grid = np.geomspace(*GAMMA_RANGE, 25)
+    grid = np.geomspace(*GAMMA_RANGE, 16)
     values = [median_asymmetry(float(g)) for g in grid]
     roots = [
         (float(grid[i]), float(grid[i + 1]))
@@ -223,10 +232,11 @@ class BoardReader:
     views: list[tuple[Array, NDArray[np.uint8]]] = field(default_factory=list)
     _estimate: GammaEstimate | None = None
     _estimated_from: int = -1
+    keeping: bool = True  # off: views are read but no longer kept (a check's, not the fit's)
 
     def __call__(self, image: ArrayLike) -> Array | None:
         corners = find_corners(image, self.squares)
-        if corners is not None:
+        if corners is not None and self.keeping:
             with contextlib.suppress(ValueError):  # a colour frame: the corners still count
                 gray = np.asarray(image)
                 self.edges.append(edge_samples(gray, corners, self.squares))

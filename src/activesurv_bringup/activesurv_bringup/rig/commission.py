@@ -225,6 +225,8 @@ def commission_dynamic(
     """
     stations = collect_stations(look, start, nominal_mount, fixture, limit=stations_limit)
     estimate = reader.gamma() if reader is not None else None
+    if reader is not None:
+        reader.keeping = False  # the eq. C1 check's views: not the estimate's
     if reader is not None and estimate is not None and abs(estimate.gamma - 1.0) > 0.05:
         g = estimate.gamma
         stations = [

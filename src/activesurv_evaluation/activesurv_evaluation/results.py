@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -67,11 +67,15 @@ def observed_visibility(
     position: ArrayLike,
     normal: ArrayLike,
 ) -> float:
-    """v_f (eq. 2) of the cameras at ``poses`` (those that imaged the marker), true target."""
+    """v_f (eq. 2) of the cameras at ``poses`` (those that imaged the marker), true target:
+    the paper's geometric figure of distance and bearing (the sensor model's blur factor is
+    left out, as :func:`visibility_from_transforms` leaves it out for a recorded run: the
+    evaluation does not know how blurred the real views were)."""
     target = Target(np.asarray(position, float), np.asarray(normal, float))
     sensors = {s.camera_id: s for s in setup.sensors}
+    geometric = replace(model, blur_coefficients=np.zeros(6)) if model.models_blur else model
     return visibility_at_poses(
-        sensors, model, dict(poses), target, setup.marker_radius, only_in_view=False
+        sensors, geometric, dict(poses), target, setup.marker_radius, only_in_view=False
     )
 
 

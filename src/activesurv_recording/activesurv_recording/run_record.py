@@ -114,6 +114,9 @@ class RunRecord(_Frozen):
         dict[str, Any], ...
     ] = ()  # the simulated cell's (activesurv_common.occlusion)
     hardware: OnRig | None = None
+    # The exposure time and response each simulated run's imager was told (a replay is told
+    # the same: the streak taken out, the frames linearised alike).
+    imager_optics: dict[str, dict[str, float]] = Field(default_factory=dict)
     replayed: bool = False
     recorder: dict[str, Any] | None = None  # what the recorder noted (``qos: offered``)
 

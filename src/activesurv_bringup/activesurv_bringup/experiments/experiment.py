@@ -237,6 +237,13 @@ class Experiment:
             # What the system was told: a replay's imagers are told the same.
             'setup': setup_to_dict(self.setup) if self.rig is not None else None,
             'obstacles': tuple(obstacles_to_list(self.setup.obstacles)),
+            'imager_optics': {
+                s.camera_id: {
+                    'exposure_time': (c := self.imager_config(s.camera_id)).exposure_time,
+                    'gamma': c.gamma,
+                }
+                for s in self.setup.sensors
+            },
         }
 
 

@@ -61,10 +61,16 @@ def replay_specs(record: RunRecord, bag: Path) -> list[NodeSpec]:
     for s in setup.sensors:
         own = dict(told.get(s.camera_id, {}))
         own.pop('camera_id', None)
+        optics = dict(record.imager_optics.get(s.camera_id, {}))
         specs.append(
             imager_spec(
                 s,
-                {'camera_id': s.camera_id, 'marker_radius': record.marker_radius, **own},
+                {
+                    'camera_id': s.camera_id,
+                    'marker_radius': record.marker_radius,
+                    **optics,
+                    **own,
+                },
                 sim_time=True,
                 extra={
                     'reliable_images': True,

@@ -22,7 +22,10 @@ from activesurv_sim.rig import save_rig
 BIN = Path(sys.executable).parent
 ACTIVESURV = str(BIN / 'activesurv')
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
-RATE = 30.0
+# The lab's cameras render through the rig's optics (14-25 ms a frame each): four of them at
+# 30 Hz want more than this 2-core machine has beside the run; at 15 Hz a busy CI machine keeps
+# up (a full suite at 30 Hz once lost frames of the first demands to the load).
+RATE = 15.0
 
 
 def test_template_reads_back_and_matches_the_layout(tmp_path: Path) -> None:

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from activesurv_bringup.rig.board_views import board_corners, collect_stations, simulated_look
+from activesurv_bringup.rig.commission import with_response
 from activesurv_bringup.rig.rigs import nominal
+from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.mount import CameraMount
 from activesurv_imaging.commissioning import (
     NoiseModel,
@@ -16,6 +18,7 @@ from activesurv_imaging.commissioning import (
     pixel_error,
 )
 from activesurv_imaging.errors import CalibrationError
+from activesurv_imaging.response import GammaEstimate
 from activesurv_sim.board import BoardFixture
 from activesurv_sim.rig import perturb_rig
 
@@ -76,3 +79,18 @@ def test_too_few_stations_are_refused() -> None:
     with pytest.raises(CalibrationError, match='station'):
         commission_camera(n.camera, n.mount, [], board_corners(BoardFixture()))
     assert isinstance(n.mount, CameraMount)
+
+
+def test_a_response_estimate_near_linear_keeps_the_camera_linear() -> None:
+    cam = dynamic_camera()
+    kept, rep = with_response(cam, GammaEstimate(0.98, 2000, 0.01))
+    assert kept.gamma == 1.0
+    assert rep['gamma'] == 0.98
+    assert rep['kept'] == 1.0
+    assert 'linear' in rep['says']
+    curved, rep = with_response(cam, GammaEstimate(2.16, 2000, 0.02))
+    assert curved.gamma == pytest.approx(2.16)
+    assert 'kept' not in rep
+    same, rep = with_response(cam, None)
+    assert same is cam
+    assert rep['gamma'] is None

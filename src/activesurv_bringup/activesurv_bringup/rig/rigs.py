@@ -129,7 +129,7 @@ def default_calibration() -> str | None:
     return os.environ.get('ACTIVESURV_CALIBRATION') or None
 
 
-COMMISSIONING = 4  # the procedure's version: 2 corners through blur, 3 gamma, 4 linearised corners
+COMMISSIONING = 5  # procedure version: 2 blurred corners, 3 gamma, 4 linear corners, 5 linear band
 
 
 def calibration_dir(cache: Path, rig: Rig) -> Path:

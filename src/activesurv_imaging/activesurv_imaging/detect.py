@@ -210,7 +210,7 @@ def _blur_variance(prof: Array, steps: Array, bright: Array, dark: Array) -> flo
     adds to some directions only)."""
     span = np.maximum(bright - dark, 1e-9)[:, None]
     level = (prof - dark[:, None]) / span
-    sigma = (_crossing(level, steps, 0.25) - _crossing(level, steps, 0.75)) / 1.349
+    sigma = (first_crossing(level, steps, 0.25) - first_crossing(level, steps, 0.75)) / 1.349
     var = sigma * sigma
     arcs = 16 if len(var) >= 64 else 1
     usable = len(var) // arcs * arcs
@@ -221,7 +221,7 @@ def _blur_variance(prof: Array, steps: Array, bright: Array, dark: Array) -> flo
     return float(found.min()) if len(found) else 0.0
 
 
-def _crossing(level: Array, steps: Array, at: float) -> Array:
+def first_crossing(level: Array, steps: Array, at: float) -> Array:
     """Where each normalised profile first falls below ``at`` (from the inside), or NaN."""
     below = level < at
     first = np.argmax(below, axis=1)

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from activesurv_imaging.calibration import find_corners, refine_corners
+from activesurv_imaging.detect import first_crossing
 
 Array = NDArray[np.float64]
 
@@ -154,15 +155,10 @@ def profiles(samples: EdgeSamples, gamma: float) -> Array:
 
 
 def _crossings(level: Array, at: float) -> Array:
-    """Where each rising normalised profile first reaches ``at`` (samples, interpolated)."""
-    above = level >= at
-    first = np.argmax(above, axis=1)
-    ok = above.any(axis=1) & (first > 0)
-    rows = np.arange(len(level))
-    f = np.maximum(first, 1)
-    v0, v1 = level[rows, f - 1], level[rows, f]
-    frac = np.clip((at - v0) / np.maximum(v1 - v0, 1e-12), 0.0, 1.0)
-    return np.where(ok, f - 1 + frac, np.nan)
+    """Where each rising normalised profile first reaches ``at`` (in samples, interpolated):
+    the falling crossing of its complement."""
+    samples = np.arange(level.shape[1], dtype=np.float64)
+    return first_crossing(1.0 - level, samples, 1.0 - at)
 
 
 def asymmetry(samples: EdgeSamples, gamma: float) -> Array:

@@ -176,17 +176,26 @@ class CameraModel:
         return np.column_stack([xd, yd])
 
     def undistort_normalized(self, xd: Array, iterations: int = 20) -> Array:
-        """Invert the distortion model by fixed-point iteration (as cv2.undistortPoints)."""
-        k1, k2, p1, p2, k3 = self.dist[:5]
-        x = xd.copy()
+        """Invert the distortion model by fixed-point iteration (as cv2.undistortPoints), at
+        most ``iterations`` passes, stopping once no point moves by 1e-12 (normalised units,
+        ~1e-9 px)."""
+        k1, k2, p1, p2, k3 = (float(c) for c in self.dist[:5])
+        x0, y0 = xd[:, 0], xd[:, 1]
+        u, v = x0.copy(), y0.copy()
         for _ in range(iterations):
-            u, v = x[:, 0], x[:, 1]
             r2 = u * u + v * v
-            radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2
-            dx = 2 * p1 * u * v + p2 * (r2 + 2 * u * u)
-            dy = p1 * (r2 + 2 * v * v) + 2 * p2 * u * v
-            x = np.column_stack([(xd[:, 0] - dx) / radial, (xd[:, 1] - dy) / radial])
-        return x
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            uv = u * v
+            nu = (x0 - (2 * p1 * uv + p2 * (r2 + 2 * u * u))) / radial
+            nv = (y0 - (p1 * (r2 + 2 * v * v) + 2 * p2 * uv)) / radial
+            moved = max(
+                float(np.max(np.abs(nu - u), initial=0.0)),
+                float(np.max(np.abs(nv - v), initial=0.0)),
+            )
+            u, v = nu, nv
+            if moved < 1e-12:
+                break
+        return np.column_stack([u, v])
 
     # -- YAML (ROS camera_calibration layout) -----------------------------------------------
     def to_dict(self) -> dict[str, Any]:

@@ -220,11 +220,13 @@ def fit_ellipse(
         conic_n = _direct_fit(u, v, w)
     else:
         conic_n = _direct_fit(u, v, np.ones_like(u))
+        # Arc lengths from the first fit: the points' order and spacing around the ellipse do
+        # not change with the small corrections of the re-weighting (only |grad Q| does).
+        arc = np.sqrt(_arc_weights(u, v, ellipse_from_conic(conic_n))) if iterations else u
         for _ in range(iterations):
-            ell_n = ellipse_from_conic(conic_n)
             A, B, C, D, E, _F = conic_n
             grad = np.hypot(2 * A * u + B * v + D, B * u + 2 * C * v + E)
-            w = np.sqrt(_arc_weights(u, v, ell_n)) / np.maximum(grad, 1e-12)
+            w = arc / np.maximum(grad, 1e-12)
             new = _direct_fit(u, v, w / w.max())
             new *= np.sign(new @ conic_n) / np.linalg.norm(new)
             # Converged when the unit conic moves less than 1e-7 (the centre by ~1e-6 px).

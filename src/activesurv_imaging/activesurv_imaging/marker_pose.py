@@ -67,6 +67,11 @@ class MarkerMeasurement:
         return None if self.poses is None else self.poses[self.chosen]
 
 
+def _one_pass(points: Array) -> Ellipse:
+    """The direct fit without re-weighting (the detector's check of a blob)."""
+    return fit_ellipse(points, iterations=0)
+
+
 def measure_marker(
     image: ArrayLike,
     camera: CameraModel,
@@ -111,8 +116,11 @@ def measure_marker(
     s = None if streak is None else np.asarray(streak, dtype=np.float64).reshape(2)
     if s is not None and np.all(np.isfinite(s)) and float(np.hypot(*s)) >= MIN_STREAK:
         config = replace(config or DetectorConfig(), streak_length=float(np.hypot(*s)))
+    # With lens distortion the ellipse is fitted to the undistorted edges below: the
+    # detector's own fit (of the distorted ones) only has to succeed, one unweighted pass.
+    first: Fitter = _one_pass if camera.has_distortion and fitter is None else fit
     det = (
-        detect_marker_detailed(image, config, fit, near, near_gate)
+        detect_marker_detailed(image, config, first, near, near_gate)
         if detection is None
         else detection
     )

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
+import subprocess
+import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -63,10 +66,63 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             wrong.append(f'{item.nodeid}: a package test is its core or node tier, not {marks}')
     if wrong:
         raise pytest.UsageError('tests without their tier:\n  ' + '\n  '.join(wrong))
+    if not config.option.collectonly and any(Path(str(i.path)).name == COLCON_TEST for i in items):
+        _start_colcon_build()
+
+
+# The colcon build of the workspace (test/test_colcon_build.py) is a minute of CMake and
+# rosidl generation that waits for nothing: it starts in the background when that test is
+# collected, beside the package tests that run first, and the test waits for it.
+COLCON_TEST = 'test_colcon_build.py'
+_colcon: dict[str, Any] = {}
+
+
+def _start_colcon_build() -> None:
+    colcon = Path(sys.executable).parent / 'colcon'
+    if _colcon or not colcon.exists():
+        return  # the test says what is missing
+    ws = Path(tempfile.mkdtemp(prefix='activesurv-colcon-'))
+    (ws / 'src').symlink_to(ROOT / 'src')
+    env = dict(os.environ)
+    env['AMENT_PREFIX_PATH'] = env['CMAKE_PREFIX_PATH'] = sys.prefix
+    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env.get("PATH", "")}'
+    log = (ws / 'build.log').open('w')
+    proc = subprocess.Popen(
+        [str(colcon), 'build', '--base-paths', 'src', '--event-handlers', 'console_direct-'],
+        cwd=ws,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,  # its own process group: stopped as one at the session's end
+    )
+    _colcon.update(ws=ws, proc=proc, log=log)
+
+
+@pytest.fixture(scope='session')
+def colcon_workspace() -> Path:
+    """The workspace colcon built in the background (its ``install/`` beside ``src``)."""
+    if not _colcon:
+        _start_colcon_build()
+    assert _colcon, 'colcon is not installed in the venv (make setup)'
+    proc: subprocess.Popen[bytes] = _colcon['proc']
+    rc = proc.wait(timeout=900)
+    ws: Path = _colcon['ws']
+    text = (ws / 'build.log').read_text(errors='replace')
+    assert rc == 0, f'colcon build failed ({rc}):\n{text[-6000:]}'
+    return ws
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    """Remove this session's ROS_HOME when every test passed; keep its logs for a failure."""
+    """Stop a colcon build still running, remove its workspace; remove this session's ROS_HOME
+    when every test passed, keep its logs for a failure."""
+    if _colcon:
+        proc = _colcon['proc']
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        _colcon['log'].close()
+        shutil.rmtree(_colcon['ws'], ignore_errors=True)
+        _colcon.clear()
     if not _owned_home:
         return
     if exitstatus == 0 and os.environ.get('ACTIVESURV_KEEP_TEST_ROS_HOME') != '1':
@@ -125,7 +181,6 @@ def spin_until(rclpy_context: Any) -> Callable[..., bool]:
 def wait_for_file() -> Callable[..., bool]:
     """Wait until ``activesurv lab`` has written its hardware file ``path`` and reported ready
     (every camera streams: ``ready`` beside the file); False if it died first."""
-    import subprocess
     import time
 
     def wait(path: Path, proc: subprocess.Popen[str], timeout: float = 60.0) -> bool:

@@ -8,7 +8,6 @@ starts the fusion node from exactly that path, and checks it answers a capture r
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -25,27 +24,10 @@ PACKAGES = sorted(p.parent.name for p in (REPO / 'src').glob('*/package.xml'))
 
 
 @pytest.fixture(scope='module')
-def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    ws = tmp_path_factory.mktemp('colcon_ws')
-    (ws / 'src').symlink_to(REPO / 'src')
-    colcon = Path(sys.executable).parent / 'colcon'
-    assert colcon.exists(), 'colcon is not installed in the venv (make setup)'
-    env = dict(os.environ)
-    env['AMENT_PREFIX_PATH'] = sys.prefix
-    env['CMAKE_PREFIX_PATH'] = sys.prefix
-    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env.get("PATH", "")}'
-    out = subprocess.run(
-        [str(colcon), 'build', '--base-paths', 'src', '--event-handlers', 'console_direct-'],
-        cwd=ws,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-        check=False,
-    )
-    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
-    yield ws / 'install'
-    shutil.rmtree(ws / 'build', ignore_errors=True)
+def colcon_install(colcon_workspace: Path) -> Path:
+    """The install space of the workspace built by colcon (started in the background by the
+    root conftest when this module is collected; see ``colcon_workspace``)."""
+    return colcon_workspace / 'install'
 
 
 def test_every_package_is_installed_as_an_ament_package(colcon_install: Path) -> None:

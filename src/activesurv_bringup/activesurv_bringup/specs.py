@@ -74,7 +74,8 @@ def live_view_spec(port: int, sim_time: bool = True) -> NodeSpec:
     )
 
 
-def bridge_spec(stage: str, config_file: str, home: bool) -> NodeSpec:
+def bridge_spec(stage: str, config_file: str, home: bool, promise_hold: float = 0.0) -> NodeSpec:
+    """A stage's bridge (``promise_hold``: the dispatcher's ``capture_hold``)."""
     return NodeSpec(
         f'{stage}_bridge',
         'activesurv_stages.stage_bridge_node',
@@ -83,6 +84,7 @@ def bridge_spec(stage: str, config_file: str, home: bool) -> NodeSpec:
             'camera_id': stage,
             'home_on_connect': bool(home),
             'reconnect_period': 0.5,
+            'promise_hold': float(promise_hold),
         },
     )
 

@@ -55,6 +55,7 @@ PARAMS = (
     Param(
         'capture_grace', 0.1, 's a capture request may wait for a fresh prediction', minimum=0.0
     ),
+    Param('capture_hold', 0.0, 's past an instant its cameras stay still', minimum=0.0),
     Param('frame_id', 'world', 'frame of plans and markers'),
 )
 
@@ -72,6 +73,7 @@ class DispatcherNode(Node):
             float(v['settle_time']),
             float(v['camera_timeout']),
             float(v['capture_grace']),
+            float(v['capture_hold']),
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.session = Dispatcher(self.setup, model, config)

@@ -41,6 +41,10 @@ class DispatcherConfig:
         camera_timeout: s without stage state or imager heartbeat before a camera is dropped.
         capture_grace: s past ``capture_lead`` a capture request may wait for the prediction
             of the overhead frame taken at or after that moment (the one lockstep decides on).
+        capture_hold: s past the demand instant its cameras still hold still: a free-running
+            camera's frame nearest the instant lies up to half a frame period after it, and
+            the stage state promised for the instant then holds for that frame too (0: the
+            frame is exposed at the instant, as a triggered or simulated camera's).
     """
 
     k: int = 3
@@ -49,6 +53,7 @@ class DispatcherConfig:
     settle_time: float = 0.1
     camera_timeout: float = 0.5
     capture_grace: float = 0.1
+    capture_hold: float = 0.0
 
 
 @dataclass
@@ -101,6 +106,7 @@ class Dispatcher:
         self.counts: Counter[str] = Counter()
         self._manoeuvres = 0
         self._announced: dict[int, tuple[str, ...]] = {}
+        self.held_until: dict[str, float] = {}  # camera: run time its capture hold ends
         self.horizon_stamp = -math.inf  # the overhead fix time behind the current horizon
         self._stalls: dict[str, float] = {}  # signal -> when every camera fell silent
         self._stall_over: dict[str, float] = {}  # signal -> when the stall ended
@@ -308,8 +314,20 @@ class Dispatcher:
         until = now if serviced_until is None else serviced_until
         for done in self.scheduler.newly_serviced(until):
             self.planner.serviced(done.demand.index)
-            self.motion.holding.difference_update(done.cameras)
+            end = done.demand.time + self.config.capture_hold
+            waiting = {  # cameras of captures requested and not yet serviced: held on
+                c
+                for j, cap in self.scheduler.requested.items()
+                if j not in self.scheduler.serviced
+                for c in cap.cameras
+            }
+            self.held_until.update({c: end for c in done.cameras if c not in waiting})
             out.serviced.append(done)
+        released = [c for c, end in self.held_until.items() if until >= end]
+        for c in released:
+            del self.held_until[c]
+        if released:
+            self.motion.holding.difference_update(released)
             out.merge(self._replan(now))
         # A continuous session runs for hours: demands long past are forgotten.
         for j in self.scheduler.prune(now - FORGET_AFTER):
@@ -330,6 +348,8 @@ class Dispatcher:
         if capture is not None:
             self.planner.close(capture.demand.index)
             self.motion.holding.update(capture.cameras)
+            for c in capture.cameras:  # held until this demand is serviced (and its hold)
+                self.held_until[c] = math.inf
             self.counts['captures'] += 1
             out.captures.append(capture)
             out.events.append(

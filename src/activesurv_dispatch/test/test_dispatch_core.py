@@ -383,3 +383,33 @@ def test_the_best_pose_prefers_a_view_in_focus_and_across_less_motion() -> None:
     v_slow = view_batch(exposed, grid, slow, setup.marker_radius, MODEL)[0]
     assert np.all(v_fast <= v_slow + 1e-18)
     assert v_fast.max() < v_slow.max()
+
+
+@pytest.mark.parametrize('hold', [0.0, 0.05])
+def test_cameras_hold_still_past_the_instant_for_the_capture_hold(hold: float) -> None:
+    """Free-running cameras (a rig): the frame nearest the instant may come after it, and the
+    demand's cameras stay still until ``instant + capture_hold``; then they are free again."""
+    from activesurv_dispatch.session import Dispatcher, DispatcherConfig, Outputs
+
+    setup = load_setup(motion='fast')
+    session = Dispatcher(setup, MODEL, DispatcherConfig(capture_hold=hold))
+    aimed = _aimed_joints('fast', 0.25)
+
+    def tick(now: float) -> Outputs:
+        out = Outputs()
+        for c, q in aimed.items():  # the stages keep reporting (alive)
+            out.merge(session.on_joints(c, q, now))
+        out.merge(session.tick(now))
+        return out
+
+    tick(1.0)
+    session.set_horizon([_demand(0, 2.0, 0.25), _demand(1, 3.0, 0.31)], 1.0)
+    (capture,) = tick(1.85).captures  # (a grace past the lead: no fresher fix)
+    assert set(capture.cameras) <= session.motion.holding
+    out = tick(2.0 + 0.5 * hold)
+    assert [s.demand.index for s in out.serviced] == [0]
+    held = set(capture.cameras) & session.motion.holding
+    assert held == (set(capture.cameras) if hold else set())
+    assert not any(g.camera_id in held for g in out.goals)  # no held camera is moved
+    tick(2.0 + hold + 1e-6)
+    assert not set(capture.cameras) & session.motion.holding

@@ -6,7 +6,9 @@ states interpolated there.
 
 Triggers (``trigger``): a ``hardware`` or ``software`` triggered camera exposes at ``t_j`` itself.
 A ``free``-running camera at ``frame_rate`` exposes whenever its clock says: the frame nearest
-``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known). It is within
+``t_j`` is taken once a frame after ``t_j`` has come (so that the nearest is known), or at once
+when the last frame before ``t_j`` lies within half a period of it (less the stamps' jitter,
+``FREE_JITTER``): the next comes a period after it, farther from ``t_j``. It is within
 half a frame period unless that frame was dropped; then the nearest that came is taken, up to
 ``free_reach`` periods away (3.25: three frames in a row lost, as when the machine stalls for ~100
 ms, plus the stamps' jitter). Its offset ``frame stamp - t_j`` is reported, the marker position is
@@ -153,6 +155,7 @@ class ImagerConfig:
 
 
 TRIGGERS = ('hardware', 'software', 'free')
+FREE_JITTER = 0.003  # s: a free-running camera's stamps scatter by this much around its period
 
 
 @dataclass(frozen=True)
@@ -275,8 +278,11 @@ class CaptureCore(Generic[F]):
             c.trigger == Trigger.FREE
             and not timed_out
             and (not stamps or stamps[-1] < r.demand_time)
+            and (not stamps or r.demand_time - stamps[-1] > 0.5 / c.frame_rate - FREE_JITTER)
         ):
-            return None  # a nearer frame may still come: wait for one exposed after t_j
+            # A nearer frame may still come: wait for one exposed after t_j, unless the last
+            # is within half a period of it (the next comes a period later: farther).
+            return None
         hit = self.frames.closest(r.demand_time, c.tolerance)
         if hit is None:
             if not timed_out:

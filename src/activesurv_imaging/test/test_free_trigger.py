@@ -194,3 +194,21 @@ def test_every_reading_carries_the_calibrations_pointing_error() -> None:
     assert float(across @ diff[:3, :3] @ across) == pytest.approx((d * 2e-4) ** 2, rel=1e-9)
     with pytest.raises(ImagingError, match='pointing_std'):
         ImagerConfig('cam1', pointing_std=-1.0)
+
+
+def test_a_frame_just_before_the_instant_is_taken_without_waiting_for_the_next() -> None:
+    # Within half a period of the instant: the next frame, a period later, is farther.
+    before = frames_near(T_J)[2]  # exposed before T_J
+    t_j = before + 0.005
+    c = core()
+    c.request(0, t_j, NORMAL, V)
+    feed(c, [s for s in frames_near(t_j) if s < t_j])
+    (obs,) = c.poll(t_j + 0.001)  # no frame after t_j yet
+    assert obs.status is ObservationStatus.OK
+    assert obs.frame_offset == pytest.approx(before - t_j, abs=1e-9)
+    # 2 ms short of half a period (within the stamps' jitter of it) it still waits.
+    late = before + 0.5 / RATE - 0.002
+    c = core()
+    c.request(0, late, NORMAL, V)
+    feed(c, [s for s in frames_near(late) if s < late])
+    assert c.poll(late + 0.001) == []

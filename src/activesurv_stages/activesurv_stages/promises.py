@@ -7,6 +7,11 @@ stamped ``t`` at once (or as soon as the axes come to rest before ``t``), so tha
 the state at hand when the frame of ``t`` arrives instead of waiting for the next poll after
 it. The first report after ``t`` checks the promise: an axis that moved anyway (a goal from
 elsewhere, a stall) is counted and said, and its report published as usual.
+
+With ``hold`` > 0 (free-running cameras: the dispatcher holds the cameras still until ``t +
+hold``, as far as the frame nearest the instant may lie after it) the same positions are
+promised for ``t + hold`` as well: the imager interpolates between the two for any frame in
+between, and the first report after ``t + hold`` checks that one too.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ class Promises:
     """Open demand instants of one bridge and the states promised for them."""
 
     tolerance: float = TOLERANCE
+    hold: float = 0.0  # s past each instant the axes are promised still as well
     pending: set[float] = field(default_factory=set)  # instants still to promise
     made: dict[float, dict[str, float]] = field(default_factory=dict)  # instant: positions
     kept: int = 0
@@ -40,7 +46,8 @@ class Promises:
         self.pending = {t for t in self.pending if t > now}
         if not standing_still or not positions or not self.pending:
             return []
-        out = [(t, dict(positions)) for t in sorted(self.pending)]
+        ends = [t + self.hold for t in self.pending] if self.hold > 0.0 else []
+        out = [(t, dict(positions)) for t in sorted([*self.pending, *ends])]
         self.made.update(out)
         self.pending.clear()
         return out

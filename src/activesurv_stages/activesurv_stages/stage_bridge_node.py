@@ -4,14 +4,15 @@ Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); estop (std
     reliable + transient local: the rig's e-stop, ``<namespace>/estop``; while it is true every
     goal is refused); capture_request (its camera's demand instants).
 Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState, SI) at the poll rate, and
-    stamped a demand instant as soon as the axes stand still before it (the dispatcher holds
-    them still until then: :mod:`activesurv_stages.promises`), /diagnostics (link state,
+    stamped a demand instant (and ``promise_hold`` after it) as soon as the axes stand still
+    before it (the dispatcher holds them still until then: :mod:`activesurv_stages.promises`),
+    /diagnostics (link state,
     counters, last error, ``estop``, ``standing_still``, promises kept and broken).
 Services: ~/stop (std_srvs/Trigger): stop every axis now (queued goals are dropped).
 Every way out (shutdown, SIGINT, SIGTERM, SIGHUP, the orchestrator gone) stops the axes with the
 protocol's own stop before the port is closed.
 Parameters: config_file (controller YAML, see ``config/zaber_example.yaml``), camera_id,
-    port (overrides the file), home_on_connect, reconnect_period.
+    port (overrides the file), home_on_connect, reconnect_period, promise_hold.
 The serial I/O runs in :class:`activesurv_stages.bridge.BridgeWorker`'s thread; the node never
 blocks on the port and never dies of a serial fault.
 """
@@ -45,6 +46,12 @@ PARAMS = (
     Param('port', '', 'serial port; overrides the file'),
     Param('home_on_connect', False, 'home unreferenced axes on connect (only when asked)'),
     Param('reconnect_period', 1.0, 's between reconnects', above=0.0),
+    Param(
+        'promise_hold',
+        0.0,
+        's past a demand instant the promised state holds too (the dispatcher capture_hold)',
+        minimum=0.0,
+    ),
 )
 
 
@@ -77,7 +84,7 @@ class StageBridgeNode(Node):
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
         self.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.ESTOP)
         self.create_service(Trigger, '~/stop', self._on_stop)
-        self.promises = Promises()
+        self.promises = Promises(hold=float(g('promise_hold').value))
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )

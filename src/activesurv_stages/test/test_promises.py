@@ -31,3 +31,16 @@ def test_an_instant_passed_before_the_axes_stopped_is_never_promised() -> None:
     p.request(5.0, now=4.7)
     assert p.due(5.1, True, {'x': 0.1}) == []
     assert p.pending == set()
+
+
+def test_a_hold_promises_the_state_past_the_instant_and_checks_it_there() -> None:
+    # Free-running cameras: the frame nearest the instant may come after it; the dispatcher
+    # holds the cameras still until instant + hold, and the bridge says so.
+    p = Promises(hold=0.022)
+    p.request(10.0, now=9.7)
+    assert p.due(9.8, True, {'x': 0.1}) == [(10.0, {'x': 0.1}), (10.022, {'x': 0.1})]
+    assert p.check(10.01, {'x': 0.1}) == []  # the instant's promise kept
+    assert (p.kept, p.broken) == (1, 0)
+    (why,) = p.check(10.03, {'x': 0.2})  # moved before the hold ended
+    assert '10.022' in why
+    assert (p.kept, p.broken) == (1, 1)

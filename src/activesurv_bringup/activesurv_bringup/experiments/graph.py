@@ -221,9 +221,11 @@ def core_specs(
     over: list[float],
     demand_times: Sequence[float],
     logs: Path,
+    capture_hold: float = 0.0,
 ) -> list[NodeSpec]:
     """Predictor, dispatcher, frames and fusion: the same in simulated and hardware runs but
-    for their ``clock`` (``use_sim_time``), the believed set-up and the demand instants."""
+    for their ``clock`` (``use_sim_time``), the believed set-up and the demand instants
+    (``capture_hold``: a rig's free-running cameras, see :func:`capture_hold`)."""
     dispatcher = exp.dispatcher_config()
     return [
         NodeSpec(
@@ -242,6 +244,7 @@ def core_specs(
                 'rho': dispatcher.rho,
                 'capture_lead': dispatcher.capture_lead,
                 'settle_time': dispatcher.settle_time,
+                'capture_hold': float(capture_hold),
             },
         ),
         NodeSpec(

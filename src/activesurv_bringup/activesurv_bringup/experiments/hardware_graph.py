@@ -91,6 +91,22 @@ def imager_config(
     )
 
 
+def capture_hold(hw: Hardware) -> float:
+    """How long past a demand instant the rig's cameras stay still: as far as the frame
+    nearest the instant may lie after it (half a frame period and the stamps' jitter) for a
+    free-running camera, or a driver we trigger in software by choosing among its streamed
+    frames; 0 when every camera exposes at the instant (hardware triggers)."""
+    return max(
+        (
+            0.5 / cam.frame_rate + 0.005
+            for cam in hw.cameras.values()
+            if cam.trigger == Trigger.FREE
+            or (cam.trigger == Trigger.SOFTWARE and cam.source.kind == SourceKind.DEVICE)
+        ),
+        default=0.0,
+    )
+
+
 def on_rig(exp: Experiment, hw: Hardware, origin: float, motion_correction: bool) -> OnRig:
     """What the run record says of a run on the rig ``hw`` with run time 0 at ``origin``."""
     return OnRig(
@@ -175,11 +191,12 @@ def hardware_specs(
     specs.append(locator)
     believed = {'setup_file': files['setup_file']}
     times = [origin + float(t) for t in exp.demand_times]
-    specs += core_specs(exp, wall, believed, over, times, bag.parent / 'logs')
+    hold = capture_hold(hw)
+    specs += core_specs(exp, wall, believed, over, times, bag.parent / 'logs', hold)
     for s in exp.setup.sensors:
         cid = s.camera_id
         cam = hw.cameras[cid]
-        specs.append(bridge_spec(cid, files[f'controller:{cid}'], home))
+        specs.append(bridge_spec(cid, files[f'controller:{cid}'], home, hold))
         sources, remap = source_specs(cam, files['calibration'])
         specs += sources
         commissioned = Path(files['calibration'], f'{cid}.yaml')

@@ -55,6 +55,10 @@ def test_help_loads_no_heavy_library() -> None:
     [
         ['surveil', '--out', '{out}', '--duration', '-5'],
         ['surveil', '--out', '{out}', '--rtf', '-1'],
+        ['surveil', '--out', '{out}', '--demand-interval', '0'],
+        ['surveil', '--out', '{out}', '--arrival-interval', 'nan'],
+        ['surveil', '--out', '{out}', '--max-bag-duration', '-1'],
+        ['surveil', '--out', '{out}', '--image-rate', '-1'],
         ['surveil', '--out', '{out}', '--demand-at', 'x=2'],
         ['surveil', '--out', '{out}', '--demand-at', 'y=0.1'],
         ['surveil', '--out', '{out}', '--foxglove', '99999'],
@@ -70,6 +74,8 @@ def test_help_loads_no_heavy_library() -> None:
             '/nonexistent.csv',
         ],
         ['experiment', '--set', 'A', '--system', 'fast', '--out', '{out}', '--expect', 'bogus'],
+        ['experiment', '--set', 'A', '--system', 'fast', '--out', '{out}', '--image-rate', '-1'],
+        ['experiment', '--set', 'A', '--system', 'fast', '--out', '{out}', '--rtf', '0'],
         ['experiment', '--set', 'A', '--system', 'fast', '--out', '{out}', '--fault', 'cam1:x'],
         [
             'experiment',

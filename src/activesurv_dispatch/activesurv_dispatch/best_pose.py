@@ -127,6 +127,22 @@ def view_batch(
     return np.where(in_view, vis, 0.0), d, bearing, in_view
 
 
+def blur_loss(
+    sensor: Sensor, q: ArrayLike, target: Target, radius: float, model: SensorModel
+) -> float:
+    """The share (0..1) of a camera's visibility at joints ``q`` that its predicted blur (depth
+    of field, the target's streak) costs: why a view lost to a sharper one. 0 when the model
+    does not weigh blur or the camera does not see the target."""
+    if not model.models_blur:
+        return 0.0
+    qq = np.asarray(q, dtype=np.float64).reshape(1, -1)
+    vis, d, b, inside = view_batch(sensor, qq, target, radius, model)
+    if not inside[0] or vis[0] <= 0.0:
+        return 0.0
+    sharp = float(visibility_from_variances(model.variances_batch(d, b))[0])
+    return max(0.0, 1.0 - float(vis[0]) / sharp) if sharp > 0.0 else 0.0
+
+
 def aim_yaw(sensor: Sensor, linear: Array, target: Target) -> Array:
     """Rotary positions that point the optical axis at the target, for each linear position.
 

@@ -55,6 +55,7 @@ from activesurv_dispatch.best_pose import (
     Target,
     aim_yaw,
     best_achievable_pose,
+    blur_loss,
     camera_frames,
     view_batch,
     visibility_at_poses,
@@ -123,6 +124,8 @@ class Plan:
         fused_visibility: v_f (eq. 2) of the assigned cameras at their desired poses.
         replanned: this plan replanned the first demand (II-D).
         ranking: camera ids of the first demand, best first, with their visibilities.
+        blur_loss: of the first demand's ranked cameras (when it was ranked), the share of
+            each one's visibility its predicted blur costs (:func:`best_pose.blur_loss`).
     """
 
     stamp: float
@@ -131,6 +134,7 @@ class Plan:
     fused_visibility: float
     replanned: bool
     ranking: tuple[tuple[str, float], ...] = ()
+    blur_loss: tuple[tuple[str, float], ...] = ()
 
     def assigned(self) -> list[str]:
         return [c for c, a in self.assignments.items() if a.role is Role.ASSIGNED]
@@ -400,6 +404,7 @@ class DispatchPlanner:
         assignments: dict[str, Assignment] = {}
         replanned = False
         ranking: tuple[tuple[str, float], ...] = ()
+        blurred: tuple[tuple[str, float], ...] = ()
         fused = 0.0
         first_index = horizon[0].index if horizon else -1
         free = list(cams)
@@ -410,6 +415,21 @@ class DispatchPlanner:
             if frozen is None:
                 ranked = self.rank(first, cams, joints, now, limit)
                 ranking = tuple((c, cand.visibility) for c, cand in ranked)
+                blurred = tuple(
+                    (c, loss)
+                    for c, cand in ranked
+                    if cand.visibility > 0.0
+                    and (
+                        loss := blur_loss(
+                            self.sensors[c],
+                            cand.joints,
+                            first.target,
+                            self.setup.marker_radius,
+                            self.model,
+                        )
+                    )
+                    > 0.0
+                )
                 # Only cameras that can see the demand are worth freezing on it; if none can,
                 # the best k still try (the demand then gets an explicit failure, not silence).
                 chosen = [item for item in ranked[: self.k] if item[1].visibility > 0.0] or ranked[
@@ -444,7 +464,7 @@ class DispatchPlanner:
                     free.remove(c)
         for c in free:
             assignments[c] = Assignment(c, Role.IDLE, -1, joints[c], 0.0)
-        return Plan(now, first_index, assignments, fused, replanned, ranking)
+        return Plan(now, first_index, assignments, fused, replanned, ranking, blurred)
 
     def _keep_frozen(
         self,

@@ -56,6 +56,16 @@ class DispatcherConfig:
     capture_hold: float = 0.0
 
 
+BLUR_SAID = 0.1  # a view's visibility its predicted blur costs, from which the log says so
+
+
+def _blurred(plan: Plan, camera_id: str) -> str:
+    """`` (blur -N %)`` when the predicted blur costs the camera's view ``BLUR_SAID`` or more
+    of its visibility (why a view lost to a sharper one), else nothing."""
+    loss = dict(plan.blur_loss).get(camera_id, 0.0)
+    return f' (blur -{100.0 * loss:.0f} %)' if loss >= BLUR_SAID else ''
+
+
 @dataclass
 class Outputs:
     """What one input or tick produced, for the caller to publish.
@@ -194,7 +204,7 @@ class Dispatcher:
         assigned = tuple(plan.assigned())
         if plan.first_index >= 0 and self._announced.get(plan.first_index) != assigned:
             self._announced[plan.first_index] = assigned
-            ranking = ', '.join(f'{c} {v:.3g}' for c, v in plan.ranking)
+            ranking = ', '.join(f'{c} {v:.3g}{_blurred(plan, c)}' for c, v in plan.ranking)
             heard = sorted(c for c in self.joints if c not in self.planner.excluded)
             out.events.append(
                 (

@@ -413,3 +413,33 @@ def test_cameras_hold_still_past_the_instant_for_the_capture_hold(hold: float) -
     assert not any(g.camera_id in held for g in out.goals)  # no held camera is moved
     tick(2.0 + hold + 1e-6)
     assert not set(capture.cameras) & session.motion.holding
+
+
+def test_the_log_says_which_views_lost_to_their_blur() -> None:
+    """A marker streaking across a camera's view over a long exposure costs that view
+    visibility (the sensor model's blur factor); the assignment's log line says how much."""
+    from dataclasses import replace
+
+    from activesurv_dispatch.session import BLUR_SAID, Dispatcher, DispatcherConfig
+
+    assert MODEL.models_blur
+    setup = load_setup(motion='fast')
+    slow = replace(
+        setup,
+        sensors=tuple(
+            replace(s, camera=replace(s.camera, exposure_time=0.03)) for s in setup.sensors
+        ),
+    )
+    joints = _aimed_joints('fast', 0.25)
+    still = DispatchPlanner(slow, MODEL, k=3).plan(0.0, [_demand(0, 2.0, 0.25)], joints)
+    assert all(loss < BLUR_SAID for _, loss in still.blur_loss)
+    moving = replace(_demand(0, 2.0, 0.25), velocity=np.array([0.3, 0.0, 0.0]))
+    plan = DispatchPlanner(slow, MODEL, k=3).plan(0.0, [moving], joints)
+    lost = {c: loss for c, loss in plan.blur_loss if loss >= BLUR_SAID}
+    assert lost, plan.blur_loss
+    session = Dispatcher(slow, MODEL, DispatcherConfig())
+    for c, q in joints.items():
+        session.on_joints(c, q, 0.0)
+    out = session.set_horizon([moving], 0.0)
+    (said,) = [text for _, text in out.events if 'assigned' in text]
+    assert any(f'{c} ' in said and '(blur -' in said for c in lost), said

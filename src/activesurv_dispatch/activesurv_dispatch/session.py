@@ -322,7 +322,8 @@ class Dispatcher:
                 )
             )
         until = now if serviced_until is None else serviced_until
-        for done in self.scheduler.newly_serviced(until):
+        serviced = self.scheduler.newly_serviced(until)
+        for done in serviced:
             self.planner.serviced(done.demand.index)
             end = done.demand.time + self.config.capture_hold
             waiting = {  # cameras of captures requested and not yet serviced: held on
@@ -336,8 +337,8 @@ class Dispatcher:
         released = [c for c, end in self.held_until.items() if until >= end]
         for c in released:
             del self.held_until[c]
-        if released:
-            self.motion.holding.difference_update(released)
+        self.motion.holding.difference_update(released)
+        if serviced or released:  # the next demand first, the released cameras free again
             out.merge(self._replan(now))
         # A continuous session runs for hours: demands long past are forgotten.
         for j in self.scheduler.prune(now - FORGET_AFTER):

@@ -208,13 +208,21 @@ def run_surveil(
             specs=specs,
             before_start=before_start,
         )
-    except StopRequested:
+    except StopRequested as stop:
         # A session is open-ended: SIGINT, SIGTERM or SIGHUP is how it ends (the graph has
         # answered its open demands and closed the bag).
         if not (bag / 'metadata.yaml').is_file():
             raise
+        signal_name = stop.signal_name
+    else:
+        signal_name = ''
     doc = finish_run(out_dir)
-    progress(f'report: {write_surveil_report(doc, out_dir)}')
+    if signal_name in ('SIGTERM', 'SIGHUP'):
+        # A service manager's stop comes with a deadline (10 s): results.json is written, the
+        # plots (seconds of matplotlib on a busy machine) are left to `activesurv report`.
+        progress(f'report skipped (stopped by {signal_name}): activesurv report {out_dir}')
+    else:
+        progress(f'report: {write_surveil_report(doc, out_dir)}')
     return doc
 
 

@@ -78,7 +78,7 @@ async def _watch(port: int, deadline: float) -> dict[str, Any]:
                 sid, log_time = struct.unpack_from('<IQ', frame, 1)
                 topic = subscribed[sid]
                 seen['messages'].setdefault(topic, []).append((log_time, bytes(frame[13:])))
-                if late and len(seen['messages'].get('/tf', ())) >= 20:
+                if late and len(seen['messages'].get('/tf', ())) >= 5:
                     # A viewer that connects late still gets the latched frame tree.
                     subs = [{'id': len(subscribed) + 1, 'channelId': late.pop('/tf_static')}]
                     subscribed[subs[0]['id']] = '/tf_static'
@@ -176,10 +176,19 @@ def test_latched_messages_reach_late_subscribers() -> None:
     cache.remember('/tf_static', b'a')
     cache.remember('/tf_static', b'b')
     cache.remember('/tf', b'x')  # not latched: never kept
-    cache.subscribed('/tf')
-    assert cache.due() == []
-    cache.subscribed('/tf_static')
-    assert cache.due() == [('/tf_static', [b'b'])]
-    assert cache.due() == []  # once per subscription
+    cache.subscribed('/tf', now=0.0)
+    assert cache.due(now=1.0) == []
+    cache.subscribed('/tf_static', now=1.0)
+    assert cache.due(now=1.05) == []  # the server may not route to it yet
+    assert cache.due(now=1.1) == [('/tf_static', [b'b'])]
+    assert cache.due(now=2.0) == []  # once per subscription
+    # Subscribed before anything was kept: due once something is.
+    cache.latch('/demand_horizon', 1)
+    cache.subscribed('/demand_horizon', now=3.0)
+    assert cache.due(now=4.0) == []
+    cache.remember('/demand_horizon', b'h')
+    assert cache.due(now=4.2) == [('/demand_horizon', [b'h'])]
     with pytest.raises(ValueError, match='depth'):
         cache.latch('/x', 0)
+    with pytest.raises(ValueError, match='settle'):
+        LatchedCache(settle=float('nan'))

@@ -9,7 +9,9 @@ not 30); everything else passes.
 from __future__ import annotations
 
 import fnmatch
+import math
 import threading
+import time
 from collections import deque
 from collections.abc import Sequence
 
@@ -78,12 +80,17 @@ class LatchedCache:
     A latched topic (``/tf_static``, ``/demand_horizon``) is published once; the server drops
     what nobody subscribes to, so a viewer that connects later would never see the frame tree.
     As ROS does for a late subscriber, the cache hands the last ``depth`` messages to every new
-    subscription. Thread-safe: the server reports subscriptions from its own thread.
+    subscription: ``settle`` seconds after it (the server reports a subscription from its own
+    thread, possibly before it routes messages to it), and, when nothing has been kept yet,
+    as soon as the first message is. Thread-safe.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, settle: float = 0.1) -> None:
+        if not math.isfinite(settle) or settle < 0.0:
+            raise ValueError(f'settle must be a finite time >= 0 s, got {settle}')
+        self.settle = settle
         self._kept: dict[str, deque[bytes]] = {}
-        self._pending: set[str] = set()
+        self._pending: dict[str, float] = {}
         self._lock = threading.Lock()
 
     def latch(self, topic: str, depth: int) -> None:
@@ -99,15 +106,25 @@ class LatchedCache:
             if kept is not None:
                 kept.append(data)
 
-    def subscribed(self, topic: str) -> None:
-        """A viewer subscribed to ``topic``: its kept messages are due."""
+    def subscribed(self, topic: str, now: float | None = None) -> None:
+        """A viewer subscribed to ``topic`` (monotonic ``now``): its kept messages are due."""
         with self._lock:
             if topic in self._kept:
-                self._pending.add(topic)
+                self._pending[topic] = time.monotonic() if now is None else now
 
-    def due(self) -> list[tuple[str, list[bytes]]]:
-        """The kept messages of every topic subscribed to since the last call."""
+    def due(self, now: float | None = None) -> list[tuple[str, list[bytes]]]:
+        """The kept messages of every topic subscribed to ``settle`` s or more before ``now``.
+
+        A subscription whose topic has kept nothing yet stays due until something is kept.
+        """
+        t = time.monotonic() if now is None else now
         with self._lock:
-            out = [(t, list(self._kept[t])) for t in sorted(self._pending) if self._kept[t]]
-            self._pending.clear()
+            ready = sorted(
+                topic
+                for topic, since in self._pending.items()
+                if self._kept[topic] and t - since >= self.settle
+            )
+            out = [(topic, list(self._kept[topic])) for topic in ready]
+            for topic in ready:
+                del self._pending[topic]
         return out

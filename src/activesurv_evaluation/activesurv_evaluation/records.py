@@ -120,9 +120,12 @@ def demand_record(
             seen.append(
                 Transform.from_rt(matrix_from_quaternion([q.x, q.y, q.z, q.w]), [p.x, p.y, p.z])
             )
-    rec.visibility = visibility_from_transforms(model, seen, truth[:3], truth[3:]) if seen else 0.0
+    known = bool(np.all(np.isfinite(truth)))  # no truth at the instant: nothing to see it by
+    rec.visibility = (
+        visibility_from_transforms(model, seen, truth[:3], truth[3:]) if seen and known else 0.0
+    )
     rec.occluded = None if obstacles is None else []
-    if obstacles and rec.occluded is not None and np.all(np.isfinite(truth[:3])):
+    if obstacles and rec.occluded is not None and known:
         for o in observations:
             if (
                 str(o.camera_id) not in rec.assigned

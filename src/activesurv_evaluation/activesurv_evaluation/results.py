@@ -108,19 +108,19 @@ class DemandRecord:
 
     @property
     def position_error(self) -> float | None:
-        if self.estimated_position is None:
+        if self.estimated_position is None or not np.all(np.isfinite(self.true_position)):
             return None
         return position_error(self.estimated_position, self.true_position)
 
     @property
     def orientation_error(self) -> float | None:
-        if self.estimated_normal is None:
+        if self.estimated_normal is None or not np.all(np.isfinite(self.true_normal)):
             return None
         return orientation_error(self.estimated_normal, self.true_normal)
 
     def to_json(self) -> dict[str, Any]:
-        def vec(v: Array | None) -> list[float] | None:
-            return None if v is None else [float(x) for x in v]
+        def vec(v: Array | None) -> list[float] | None:  # unknown (None or NaN): null
+            return None if v is None or not np.all(np.isfinite(v)) else [float(x) for x in v]
 
         return {
             'index': self.index,

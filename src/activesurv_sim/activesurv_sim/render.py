@@ -315,6 +315,10 @@ class Renderer:
         self._rays32 = np.ascontiguousarray(self._rays, dtype=np.float32)
         self._pools: dict[tuple[float, float, float, float], NDArray[np.uint8]] = {}
         self._pool_normals: NDArray[np.float32] | None = None
+        # The last coverage frame before the sensor: (what it showed, its window, levels).
+        self._last: (
+            tuple[tuple[object, ...], tuple[int, int, int, int], NDArray[np.float32]] | None
+        ) = None
 
     def _plate_box(self, plate: Plate, T: Transform) -> tuple[int, int, int, int] | None:
         """Pixel bounding box (u0, u1, v0, v1) of a plate, or None when it is not in front."""
@@ -402,6 +406,14 @@ class Renderer:
         out = self._background(scene.background * optics.gain, noise, rng, optics.gamma)
         if not boxes:
             return out
+        # A camera and a scene at rest see what they saw: only the sensor's noise is new.
+        key = _frame_key(T, scene, noise, optics)
+        if self._last is not None and self._last[0] == key:
+            _, (V0, V1, U0, U1), img = self._last
+            out[V0:V1, U0:U1] = _expose(
+                img, noise, rng, self._normals(img.size, rng), optics.gamma
+            )
+            return out
         # The blur's and the streak's reach beyond the plates.
         m = int(np.ceil(4.0 * optics.blur(noise.blur_sigma) + optics.streak_length)) + 2
         U0 = max(min(b[0] for _, b in boxes) - m, 0)
@@ -427,6 +439,7 @@ class Renderer:
             left[win] -= take
         img += left * bg
         img = self._through_optics(img, noise, optics)
+        self._last = (key, (V0, V1, U0, U1), img)  # _expose leaves it as it is
         out[V0:V1, U0:U1] = _expose(img, noise, rng, self._normals(img.size, rng), optics.gamma)
         return out
 
@@ -543,6 +556,37 @@ class Renderer:
                 sub_level, _ = _shade(scene, origin, cam.rays(sub), rotation=R)
                 img[ev, eu] = sub_level.reshape(-1, s * s).mean(axis=1)
         return img
+
+
+def _frame_key(
+    T: Transform, scene: Scene, noise: SensorNoise, optics: FrameOptics
+) -> tuple[object, ...]:
+    """Everything a coverage frame depends on before the sensor's noise, exactly."""
+    plates = tuple(
+        (
+            p.center.tobytes(),
+            p.normal.tobytes(),
+            p.x_axis.tobytes(),
+            p.half_size,
+            p.pattern,
+            p.radius,
+            p.squares,
+            p.square_size,
+            p.plate_level,
+            p.mark_level,
+            p.one_sided,
+        )
+        for p in scene.plates
+    )
+    return (
+        np.asarray(T.R).tobytes(),
+        np.asarray(T.t).tobytes(),
+        plates,
+        scene.background,
+        scene.ambient_gradient,
+        noise.blur_sigma,
+        optics,
+    )
 
 
 TILE = 8

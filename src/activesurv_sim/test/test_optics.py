@@ -125,3 +125,24 @@ def test_the_rig_file_carries_each_cameras_optics() -> None:
 
 def _mount() -> CameraMount:
     return CameraMount('cam1', np.array([0.02, -0.5, 0.05]), 1.5708, 0.0, np.zeros(3))
+
+
+def test_a_still_scene_is_rendered_once_and_only_its_noise_is_drawn_again() -> None:
+    eye = np.array([0.0, -0.5, 0.05])
+    T = look_at(eye, [0.0, 0.0, 0.05])
+    scene = Scene((Plate.disc([0.0, 0.0, 0.05], [0.0, -1.0, 0.0], 0.0125, 0.03),))
+    r = Renderer(CAM)
+    rng = np.random.default_rng(3)
+    fresh = Renderer(CAM).render(T, scene, QUIET, rng)
+    assert np.array_equal(r.render(T, scene, QUIET, rng), fresh)
+    assert np.array_equal(r.render(T, scene, QUIET, rng), fresh)  # the kept frame: the same
+    noisy = SensorNoise(0.8, 40.0, 1.0)
+    a, b = r.render(T, scene, noisy, rng), r.render(T, scene, noisy, rng)
+    assert not np.array_equal(a, b)  # new noise on the kept frame
+    assert abs(float(a.astype(float).mean()) - float(fresh.astype(float).mean())) < 0.5
+    # Anything that moves is rendered anew: a plate 50 um aside, a camera turned, other optics.
+    moved = Scene((Plate.disc([5e-5, 0.0, 0.05], [0.0, -1.0, 0.0], 0.0125, 0.03),))
+    assert np.array_equal(r.render(T, moved, QUIET, rng), Renderer(CAM).render(T, moved, QUIET))
+    turned = look_at(eye, [0.001, 0.0, 0.05])
+    assert not np.array_equal(r.render(turned, scene, QUIET, rng), fresh)
+    assert not np.array_equal(r.render(T, scene, QUIET, rng, FrameOptics(gain=0.5)), fresh)

@@ -39,6 +39,7 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_HOME'] = str(ros_home)
     os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
+    os.environ['ACTIVESURV_LOCK_DIR'] = str(ros_home / 'locks')  # the rigs' port locks
     os.environ['ACTIVESURV_TEST_ISOLATED'] = '1'
     # Runs are told their rig's truth unless a test asks otherwise: commissioning a rig takes
     # minutes (test_commission.py runs it, and the default, on purpose).

@@ -48,3 +48,45 @@ def test_the_prompt_shows_where_each_axis_stands_and_moves_nothing(
     finally:
         table.close()
         cam1.close()
+
+
+def test_a_second_run_on_a_rig_in_use_is_refused_at_once(tmp_path: Path) -> None:
+    import os
+    import subprocess
+
+    doc = yaml.safe_load(template_text(paper_rig()))
+    ports = {}
+    for cid, cam in doc['cameras'].items():
+        ports[cid] = tmp_path / f'tty{cid.upper()}'
+        cam['stages']['controller']['port'] = str(ports[cid])
+    ports['table'] = tmp_path / 'ttyTABLE'
+    doc['table']['stages']['controller']['port'] = str(ports['table'])
+    for p in ports.values():
+        p.touch()  # ports that exist and this user can read and write: the check passes
+    path = tmp_path / 'rig.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    hold = (
+        'import sys, time\n'
+        'from activesurv_hardware.rig_lock import RigLock\n'
+        'lock = RigLock([sys.argv[1]], "activesurv surveil --hardware rig.yaml")\n'
+        'print("locked", flush=True)\n'
+        'time.sleep(60)\n'
+    )
+    holder = subprocess.Popen(
+        [sys.executable, '-c', hold, str(ports['cam3'])], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None
+        assert holder.stdout.readline().strip() == 'locked'
+        out = tmp_path / 'run'
+        cmd = [os.path.join(os.path.dirname(sys.executable), 'activesurv'), 'experiment']
+        cmd += ['--set', 'A', '--system', 'fast', '--hardware', str(path), '--yes']
+        cmd += ['--calibration', 'nominal', '--out', str(out)]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    finally:
+        holder.kill()
+        holder.wait(timeout=10)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert f'{ports["cam3"]} is held by pid {holder.pid} (activesurv surveil' in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert not out.exists()  # refused before anything was made

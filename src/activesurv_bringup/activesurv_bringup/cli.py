@@ -905,11 +905,16 @@ def _drop_if_empty(out: Path) -> None:
 
 def _dispatch(args: argparse.Namespace, checked: Checked) -> None:
     if getattr(args, 'hardware', None) is not None and args.command != 'stop':
-        from activesurv_bringup.rig.hardware import confirm_motion, read
+        from activesurv_bringup.rig.hardware import confirm_motion, read, rig_ports
+        from activesurv_hardware.rig_lock import RigLock
 
         rig_file = read(args.hardware)
         what = args.hardware_command if args.command == 'hardware' else args.command
-        confirm_motion(rig_file, what, args.yes, args.home or rig_file.home)
+        # One run at a time on a rig: its controller ports stay locked for this process's life.
+        with RigLock(rig_ports(rig_file), f'activesurv {what} --hardware {args.hardware}'):
+            confirm_motion(rig_file, what, args.yes, args.home or rig_file.home)
+            COMMANDS[args.command](args, checked)
+        return
     COMMANDS[args.command](args, checked)
 
 

@@ -52,6 +52,9 @@ from activesurv_hardware.schema import (
 from activesurv_sim.board import BoardFixture
 from activesurv_stages.config import ControllerConfig, controller_from_dict
 
+# libyaml's parser where PyYAML has it: the same safe subset, about ten times faster.
+_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
 
 @dataclass(frozen=True)
 class ImageSource:
@@ -179,7 +182,7 @@ def read_document(path: Path | str) -> Any:
     """
     p = Path(path)
     try:
-        return yaml.safe_load(p.read_text())
+        return yaml.load(p.read_text(), Loader=_LOADER)
     except OSError as exc:
         raise HardwareFileError(f'cannot read hardware file {p}: {exc.strerror or exc}') from exc
     except yaml.YAMLError as exc:

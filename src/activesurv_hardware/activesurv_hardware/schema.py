@@ -25,6 +25,9 @@ from activesurv_common.trigger import Trigger
 from activesurv_sim.xytable import TABLE_JOINTS
 from activesurv_stages.schema import DAISY_CHAINED, ControllerFile
 
+# libyaml's parser where PyYAML has it: the same safe subset, about ten times faster.
+_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
 Vector3 = tuple[float, float, float]
 Range = tuple[float, float]
 
@@ -194,7 +197,7 @@ def _read_stages(value: Any, base: Path, where: str, found: list[str]) -> Any:
     if isinstance(value, str):
         path = (base / value).resolve()
         try:
-            return yaml.safe_load(path.read_text())
+            return yaml.load(path.read_text(), Loader=_LOADER)
         except (OSError, yaml.YAMLError) as exc:
             found.append(f'{where}: cannot read {path}: {exc}')
             return None

@@ -56,6 +56,7 @@ LAB_PARAMS = (
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
+OBJECT_GONE = 2.0  # s without an object state: the table shows the calibration boards
 
 
 class LabCameraNode(Node):
@@ -73,7 +74,6 @@ class LabCameraNode(Node):
         self.boards = simulated_camera({**params, 'payload': 'board'}, mount)
         self.sim.warm_up()
         self.info_model = published_model(params, self.sim)
-        self.object_seen = -1e18  # wall time of the last object state
         self.frame_id = f'{self.camera_id}_optical_frame'
         rate = float(v['frame_rate'])
         if not rate > 0.0:
@@ -111,7 +111,6 @@ class LabCameraNode(Node):
 
     def _on_object(self, msg: ObjectState) -> None:
         self.sim.objects.add(time_to_sec(msg.header.stamp), object_state_vector(msg))
-        self.object_seen = time.monotonic()
         self._develop()
 
     def _on_table(self, msg: JointState) -> None:
@@ -141,10 +140,10 @@ class LabCameraNode(Node):
     def _develop(self) -> None:
         # What the camera saw at t is where the stages and the table were at t: render it when
         # reports stamped at or after t have come (they come at the controllers' poll rate).
-        sim = self.sim if time.monotonic() - self.object_seen < 2.0 else self.boards
         now = self.get_clock().now().nanoseconds * 1e-9
         while self.pending:
             t = self.pending[0]
+            sim = self._scene_at(t)
             seen = (sim.objects.latest_time or -1e18) >= t and (
                 not sim.joint_names or (sim.joints.latest_time or -1e18) >= t
             )
@@ -152,6 +151,12 @@ class LabCameraNode(Node):
                 return
             self.pending.pop(0)
             self._shoot(sim, t)
+
+    def _scene_at(self, t: float) -> Any:
+        """What is on the table at ``t``: the object while its states come (within
+        ``OBJECT_GONE`` of ``t``, by their stamps), else the calibration boards."""
+        last = self.sim.objects.latest_time
+        return self.sim if last is not None and last > t - OBJECT_GONE else self.boards
 
     def _shoot(self, sim: Any, t: float) -> None:
         started = time.perf_counter()

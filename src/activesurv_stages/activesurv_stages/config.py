@@ -30,6 +30,9 @@ from activesurv_stages.errors import ConfigError, LimitError
 from activesurv_stages.kinematics import AxisLimits
 from activesurv_stages.schema import controller_problems
 
+# libyaml's parser where PyYAML has it: the same safe subset, about ten times faster.
+_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
 
 @dataclass(frozen=True)
 class MotionClass:
@@ -183,7 +186,7 @@ def controller_from_dict(data: dict[str, Any]) -> ControllerConfig:
 
 def load_controller(path: Path | str) -> ControllerConfig:
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        data = yaml.load(Path(path).read_text(), Loader=_LOADER)
     except (OSError, yaml.YAMLError) as exc:
         raise ConfigError(f'cannot read controller config {path}: {exc}') from exc
     return controller_from_dict(data)

@@ -150,6 +150,12 @@ def calibration_dir(hw: Hardware, calibration: str | None) -> Path:
     return hw.calibration
 
 
+def rig_ports(hw: Hardware) -> list[str]:
+    """Every controller port of the rig (the cameras' stages and the table)."""
+    configs = [cam.stages for cam in hw.cameras.values()] + [hw.table]
+    return [c.port for c in configs if c is not None]
+
+
 def current_positions(hw: Hardware) -> tuple[dict[str, float], list[str]]:
     """Every joint's position now, read from its controller without moving it; and a line per
     controller that could not be read (the bridges are not up yet: the ports are free)."""

@@ -27,6 +27,7 @@ from typing import Any, Self
 import numpy as np
 import rclpy
 from numpy.typing import NDArray
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
@@ -59,6 +60,8 @@ class Observer:
         self.namespace = namespace
         self._owns_rclpy = False
         self._node: Node | None = None
+        self._executor: SingleThreadedExecutor | None = None
+        self._stage_subs: list[Any] = []  # watch_stages' subscriptions
         self.states: dict[str, JointState] = {}
         self._goal_pubs: dict[str, Any] = {}
         self.frames: dict[str, deque[tuple[float, bytes]]] = {}
@@ -77,6 +80,11 @@ class Observer:
             rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
             self._owns_rclpy = True
         self._node = rclpy.create_node(self.name, namespace=self.namespace or None)
+        # One executor for the node's life: rclpy.spin_once(node) adds the node to the global
+        # executor and removes it again at every call (a wait set rebuilt twice per message:
+        # a sixth of a core for a session's monitor on the lab).
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self._node)
         self.on_start()
         return self
 
@@ -92,6 +100,9 @@ class Observer:
         """Subscriptions a subclass makes once its node exists."""
 
     def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown(timeout_sec=0.0)
+            self._executor = None
         if self._node is not None:
             self._node.destroy_node()
             self._node = None
@@ -111,6 +122,11 @@ class Observer:
         """This node's clock (s)."""
         return float(self.node.get_clock().now().nanoseconds) * 1e-9
 
+    def _spin_once(self, timeout: float) -> None:
+        if self._executor is None:
+            raise RuntimeError(f'{self.name}: used outside its "with" block')
+        self._executor.spin_once(timeout_sec=timeout)
+
     def spin(self, seconds: float) -> None:
         """Handle what comes for ``seconds``."""
         end = time.monotonic() + seconds
@@ -118,7 +134,7 @@ class Observer:
             left = end - time.monotonic()
             if left <= 0.0:
                 return
-            rclpy.spin_once(self.node, timeout_sec=min(0.01 if self._paced else 0.05, left))
+            self._spin_once(min(0.01 if self._paced else 0.05, left))
             self._pace()
             self.on_spin()
 
@@ -131,7 +147,7 @@ class Observer:
         while not done():
             if time.monotonic() > deadline:
                 return False
-            rclpy.spin_once(self.node, timeout_sec=0.01 if self._paced else 0.02)
+            self._spin_once(0.01 if self._paced else 0.02)
             self._pace()
             self.on_spin()
         return True
@@ -159,7 +175,18 @@ class Observer:
                 if on_state is not None:
                     on_state(stage, msg)
 
-            self.node.create_subscription(JointState, topics.joint_states(stage), keep, qos.STATE)
+            self._stage_subs.append(
+                self.node.create_subscription(
+                    JointState, topics.joint_states(stage), keep, qos.STATE
+                )
+            )
+
+    def unwatch_stages(self) -> None:
+        """Stop hearing the stages' joint states (``states`` keeps the last of each): a running
+        graph's monitor need not wake for every poll of every controller."""
+        for sub in self._stage_subs:
+            self.node.destroy_subscription(sub)
+        self._stage_subs.clear()
 
     def missing_stages(self) -> set[str]:
         """The watched stages not heard from yet (a GraphSession's ``missing``)."""

@@ -87,6 +87,8 @@ def test_a_second_run_on_a_rig_in_use_is_refused_at_once(tmp_path: Path) -> None
         holder.kill()
         holder.wait(timeout=10)
     assert done.returncode == 1, done.stdout + done.stderr
-    assert f'{ports["cam3"]} is held by pid {holder.pid} (activesurv surveil' in done.stderr
+    # Refused by the check of the file (its key path), before the run would take the locks.
+    assert 'cameras.cam3.stages.controller.port: ' in done.stderr
+    assert f'{ports["cam3"]} is in use by pid {holder.pid} (activesurv surveil' in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
     assert not out.exists()  # refused before anything was made

@@ -44,6 +44,7 @@ import yaml
 from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_hardware.errors import HardwareFileError
+from activesurv_hardware.rig_lock import holder
 from activesurv_hardware.schema import (
     CameraSection,
     HardwareFile,
@@ -267,6 +268,11 @@ def port_problems(hw: Hardware) -> list[str]:
                 f'{key}: {port} is not readable and writable by {user} (sudo usermod -aG '
                 'dialout $USER and log in again, or a udev rule: SUBSYSTEM=="tty", '
                 'MODE="0660", GROUP="dialout")'
+            )
+        elif (held := holder(port)) is not None:
+            found.append(
+                f'{key}: {port} is in use by {held} (one run at a time on a rig: wait for it '
+                'to end or stop it)'
             )
     return found
 

@@ -85,6 +85,22 @@ class RigLock:
         self.release()
 
 
+def holder(port: str, directory: Path | None = None) -> str | None:
+    """Who holds ``port`` now (``pid N (command, since HH:MM:SS)``), or None when it is free.
+
+    Only the lock file is touched: the port itself is not opened (opening a serial port can
+    reset the board behind it, as an Arduino running GRBL does).
+    """
+    try:
+        RigLock([port], 'activesurv hardware check', directory).release()
+    except RigBusyError as exc:
+        text = str(exc)
+        start = text.find(' is held by ')
+        end = text.find('; wait for')
+        return text[start + len(' is held by ') : end] if start >= 0 and end > start else text
+    return None
+
+
 def _take(path: Path, port: str, what: str) -> int:
     path.parent.mkdir(parents=True, exist_ok=True)
     try:

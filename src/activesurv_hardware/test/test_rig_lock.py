@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from activesurv_hardware.rig_lock import RigBusyError, RigLock, lock_path
+from activesurv_hardware.rig_lock import RigBusyError, RigLock, holder, lock_path
 
 HOLD = (
     'import sys, time\n'
@@ -48,9 +48,14 @@ def test_a_second_run_is_refused_and_a_killed_one_leaves_no_lock(tmp_path: Path)
         # Nothing stayed locked by the refused run: cam1's port is free.
         with RigLock([str(cam)], 'activesurv commission', locks):
             pass
+        assert holder(str(cam), locks) is None
+        held = holder(str(table), locks)
+        assert held is not None
+        assert held.startswith(f'pid {proc.pid} (activesurv surveil --hardware lab.yaml, since ')
     finally:
         os.kill(proc.pid, signal.SIGKILL)  # the kernel drops a killed process's locks
         proc.wait(timeout=10)
+    assert holder(str(table), locks) is None
     with RigLock([str(link), str(cam), str(cam)], 'activesurv experiment', locks):
         assert lock_path(str(link), locks) == lock_path(str(table), locks)
         text = lock_path(str(table), locks).read_text()

@@ -45,6 +45,7 @@ from activesurv_interfaces.msg import ObjectState
 from activesurv_sim import conversions as conv
 from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
+from activesurv_sim.sim_camera import on_table
 from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
 from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
@@ -56,7 +57,6 @@ LAB_PARAMS = (
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
-OBJECT_GONE = 2.0  # s without an object state: the table shows the calibration boards
 
 
 class LabCameraNode(Node):
@@ -143,7 +143,7 @@ class LabCameraNode(Node):
         now = self.get_clock().now().nanoseconds * 1e-9
         while self.pending:
             t = self.pending[0]
-            sim = self._scene_at(t)
+            sim = on_table(self.sim, self.boards, t)
             seen = (sim.objects.latest_time or -1e18) >= t and (
                 not sim.joint_names or (sim.joints.latest_time or -1e18) >= t
             )
@@ -151,12 +151,6 @@ class LabCameraNode(Node):
                 return
             self.pending.pop(0)
             self._shoot(sim, t)
-
-    def _scene_at(self, t: float) -> Any:
-        """What is on the table at ``t``: the object while its states come (within
-        ``OBJECT_GONE`` of ``t``, by their stamps), else the calibration boards."""
-        last = self.sim.objects.latest_time
-        return self.sim if last is not None and last > t - OBJECT_GONE else self.boards
 
     def _shoot(self, sim: Any, t: float) -> None:
         started = time.perf_counter()

@@ -383,3 +383,13 @@ class SimulatedCamera:
             RenderError: if the object or stage state at ``t`` is unknown.
         """
         return self.render_state(*self.truth_at(t, hold), self.rates_at(t, hold))
+
+
+OBJECT_GONE = 2.0  # s without an object state: the lab's table shows the calibration boards
+
+
+def on_table(objects: SimulatedCamera, boards: SimulatedCamera, t: float) -> SimulatedCamera:
+    """What a lab camera sees on the table at ``t``: the object (``objects``) while its states
+    come, within :data:`OBJECT_GONE` of ``t`` by their stamps, else the calibration boards."""
+    last = objects.objects.latest_time
+    return objects if last is not None and last > t - OBJECT_GONE else boards

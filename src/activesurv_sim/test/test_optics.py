@@ -146,3 +146,18 @@ def test_a_still_scene_is_rendered_once_and_only_its_noise_is_drawn_again() -> N
     turned = look_at(eye, [0.001, 0.0, 0.05])
     assert not np.array_equal(r.render(turned, scene, QUIET, rng), fresh)
     assert not np.array_equal(r.render(T, scene, QUIET, rng, FrameOptics(gain=0.5)), fresh)
+
+
+def test_a_lab_camera_sees_the_object_while_it_is_reported_else_the_boards() -> None:
+    from activesurv_common.camera_model import dynamic_camera as cam
+    from activesurv_common.object_geometry import ObjectGeometry
+    from activesurv_sim.sim_camera import OBJECT_GONE, SimulatedCamera, on_table
+
+    T = look_at([0.0, -0.5, 0.05], [0.0, 0.0, 0.05])
+    objects = SimulatedCamera(cam('cam1'), T, ObjectGeometry())
+    boards = SimulatedCamera(cam('cam1'), T, ObjectGeometry())
+    assert on_table(objects, boards, 10.0) is boards  # no object reported yet
+    objects.objects.add(10.0, np.zeros(9))
+    assert on_table(objects, boards, 10.5) is objects
+    assert on_table(objects, boards, 9.0) is objects  # an exposure just before its first state
+    assert on_table(objects, boards, 10.0 + OBJECT_GONE + 0.1) is boards  # it left the table

@@ -81,8 +81,8 @@ class Observer:
             self._owns_rclpy = True
         self._node = rclpy.create_node(self.name, namespace=self.namespace or None)
         # One executor for the node's life: rclpy.spin_once(node) adds the node to the global
-        # executor and removes it again at every call (a wait set rebuilt twice per message:
-        # a sixth of a core for a session's monitor on the lab).
+        # executor and removes it again at every call. (What cost a lab session's monitor a
+        # sixth of a core was hearing every goal and poll: see unwatch_stages.)
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self._node)
         self.on_start()

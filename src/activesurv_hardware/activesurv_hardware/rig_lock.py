@@ -28,7 +28,11 @@ LOCK_DIR_ENV = 'ACTIVESURV_LOCK_DIR'
 
 
 class RigBusyError(HardwareError):
-    """A controller port is held by another run."""
+    """A controller port is held by another run (``holder``: who, as its lock file says)."""
+
+    def __init__(self, message: str, holder: str = '') -> None:
+        super().__init__(message)
+        self.holder = holder
 
 
 def lock_dir() -> Path:
@@ -94,10 +98,7 @@ def holder(port: str, directory: Path | None = None) -> str | None:
     try:
         RigLock([port], 'activesurv hardware check', directory).release()
     except RigBusyError as exc:
-        text = str(exc)
-        start = text.find(' is held by ')
-        end = text.find('; wait for')
-        return text[start + len(' is held by ') : end] if start >= 0 and end > start else text
+        return exc.holder or str(exc)
     return None
 
 
@@ -112,11 +113,12 @@ def _take(path: Path, port: str, what: str) -> int:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError:
-        holder = os.pread(fd, 512, 0).decode(errors='replace').strip() or 'another process'
+        who = os.pread(fd, 512, 0).decode(errors='replace').strip() or 'another process'
         os.close(fd)
         raise RigBusyError(
-            f'the rig is in use: {port} is held by {holder}; wait for that run to end or stop '
-            'it (Ctrl-C in its terminal; activesurv stop --hardware FILE stops its stages)'
+            f'the rig is in use: {port} is held by {who}; wait for that run to end or stop '
+            'it (Ctrl-C in its terminal; activesurv stop --hardware FILE stops its stages)',
+            who,
         ) from None
     os.ftruncate(fd, 0)
     stamp = time.strftime('%H:%M:%S')

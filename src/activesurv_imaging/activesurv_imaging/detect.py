@@ -12,6 +12,9 @@ Pipeline:
 4. Sub-pixel boundary: each boundary pixel of the blob is moved along the coarse ellipse's normal
    to where the grey-level profile crosses half-way between the local marker and plate levels
    (bilinear interpolation, 0.25-px steps). For a blurred step edge this is the edge itself.
+   Then each edge again on a profile centred on it, its window sized from the edge's ramp (the
+   lens's blur, the known streak): the half-way crossing, or across a known streak the
+   area-equivalent edge (linear in the pixels, as the streak's model is).
 5. Weighted least-squares ellipse fit (:func:`activesurv_imaging.ellipse.fit_ellipse`).
 """
 
@@ -32,6 +35,12 @@ from activesurv_imaging.errors import EllipseFitError, ImagingError
 
 Array = NDArray[np.float64]
 Fitter = Callable[[Array], Ellipse]
+
+AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
+MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
+# Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
+AREA_MIN_STREAK = 3.0  # px, the streak's length
+ACROSS = 0.15  # |cos| of an edge normal to a streak below which the edge runs along the streak
 
 
 class DetectionStatus(Enum):
@@ -68,6 +77,11 @@ class DetectorConfig:
             semi-minor axis), so that both grey levels lie beyond the ramp's ends however far
             the coarse boundary (a threshold across a long ramp) lies from the edge.
         near_gate: px from the expected position within which one of several markers is taken.
+        streak_angle: rad, the streak's direction in the image (with ``streak_length``): its
+            share of each edge's ramp is not taken for the lens's blur.
+        area_edges: measure each edge again as its area-equivalent edge, on a profile centred on
+            it over the ramp's width (off: the half-way crossings alone, biased inwards by noise
+            on long ramps).
     """
 
     min_semi_minor: float = 4.0
@@ -84,6 +98,8 @@ class DetectorConfig:
     subpixel: bool = True
     near_gate: float = 60.0
     streak_length: float = 0.0
+    streak_angle: float = 0.0
+    area_edges: bool = True
 
 
 @dataclass(frozen=True)
@@ -170,21 +186,7 @@ def subpixel_edges(
         half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
     step = 0.25 if half <= 6.0 else 0.5
     steps = np.arange(-half, half + 1e-9, step)
-    xs = (boundary[:, 0:1] + normals[:, 0:1] * steps[None, :]).astype(np.float32)
-    ys = (boundary[:, 1:2] + normals[:, 1:2] * steps[None, :]).astype(np.float32)
-    # Only the pixels the profiles touch are linearised and sampled (not the whole frame).
-    h, w = image.shape[:2]
-    x0 = min(max(int(np.floor(xs.min())) - 1, 0), w - 1)
-    y0 = min(max(int(np.floor(ys.min())) - 1, 0), h - 1)
-    x1 = max(min(int(np.ceil(xs.max())) + 2, w), x0 + 1)
-    y1 = max(min(int(np.ceil(ys.max())) + 2, h), y0 + 1)
-    prof = cv2.remap(
-        _linear(image[y0:y1, x0:x1], config.gamma),
-        xs - np.float32(x0),
-        ys - np.float32(y0),
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_REPLICATE,
-    ).astype(np.float64)
+    prof = _profiles(image, boundary, normals, steps, config.gamma)
     quarter = max(len(steps) // 4, 1)
     bright = np.median(prof[:, :quarter], axis=1)  # inside the marker
     dark = np.median(prof[:, -quarter:], axis=1)  # on the plate
@@ -205,30 +207,123 @@ def subpixel_edges(
     # direction only, and moves no half-way point along it: the isotropic part is the least
     # variance found around the marker.
     var = 0.0
-    if len(idx):
-        var = _blur_variance(prof[idx], steps, bright[idx], dark[idx])
-        t += 0.5 * _curvature(coarse, boundary[idx]) * var
-    return np.asarray(boundary[idx] + normals[idx] * t[:, None], dtype=np.float64), var
+    if not len(idx):
+        return np.zeros((0, 2)), var
+    swept = config.streak_length * np.abs(
+        normals[idx] @ np.array([math.cos(config.streak_angle), math.sin(config.streak_angle)])
+    )
+    var, widest = _blur_variance(prof[idx], steps, bright[idx], dark[idx], swept)
+    boundary, normals = boundary[idx], normals[idx]
+    if config.area_edges:
+        # The window holds the longest ramp: a known streak's, or the widest blur found (an
+        # unknown motion's streak, a tilted marker's defocus).
+        ramp = (
+            max(0.5 * config.streak_length + 2.5 * math.sqrt(var), 2.5 * math.sqrt(widest)) + 1.0
+        )
+        area = config.streak_length >= AREA_MIN_STREAK
+        at = boundary + normals * t[:, None]
+        dt, keep = _edges_again(image, at, normals, ramp, config, area)
+        boundary, normals, t = boundary[keep], normals[keep], t[keep] + dt
+    # The area-equivalent edge of a blurred disc is pulled in as the half-way contour is.
+    t += 0.5 * _curvature(coarse, boundary) * var
+    return np.asarray(boundary + normals * t[:, None], dtype=np.float64), var
 
 
-def _blur_variance(prof: Array, steps: Array, bright: Array, dark: Array) -> float:
+def _edges_again(
+    image: NDArray[np.uint8],
+    centres: Array,
+    normals: Array,
+    ramp: float,
+    config: DetectorConfig,
+    area: bool,
+) -> tuple[Array, NDArray[np.bool_]]:
+    """Each edge again, on a profile centred on it over a window sized from the edge's ramp
+    (``ramp``: px either side, from the blur and the streak) with the marker's and the plate's
+    levels from beyond its ends: the first search ran from the coarse boundary, which on a long
+    ramp or beside something bright can lie pixels off the edge, its levels taken on the ramp.
+
+    ``area``: the area-equivalent edge (the step holding the same light between the two levels),
+    else the half-way crossing. The area is linear in the pixels: on a streak's long ramp noise
+    pulls a first crossing inwards (a dip below the mid level comes earlier than a rise above it
+    later) and the area does not move, and it is what the streak's model predicts; on a steep
+    edge (or a defocused one: measured) the crossing is the less noisy. Returns each point's
+    offset along its normal (px) and which points held.
+    """
+    half = min(ramp, MAX_RAMP) + AREA_MARGIN
+    step = 0.25 if half <= 8.0 else 0.5
+    steps = np.arange(-half, half + 1e-9, step)
+    prof = _profiles(image, centres, normals, steps, config.gamma)
+    outer = np.abs(steps) > half - AREA_MARGIN
+    bright = np.median(prof[:, outer & (steps < 0)], axis=1)
+    dark = np.median(prof[:, outer & (steps > 0)], axis=1)
+    span = bright - dark
+    level = (prof - dark[:, None]) / np.maximum(span, 1e-9)[:, None]
+    if area:  # the integral of the level over the window: its length inside the marker
+        t = step * (level.sum(axis=1) - 0.5 * (level[:, 0] + level[:, -1])) - half
+    else:
+        t = first_crossing(level, steps, 0.5)
+    keep = (span >= _linear_contrast(config)) & (np.abs(t) < half - AREA_MARGIN)
+    return t[keep], keep
+
+
+def _profiles(
+    image: NDArray[np.uint8], centres: Array, normals: Array, steps: Array, gamma: float
+) -> Array:
+    """Grey-level profiles (linear radiance) along ``normals`` through ``centres`` at
+    ``steps`` px; only the pixels they touch are linearised."""
+    xs = (centres[:, 0:1] + normals[:, 0:1] * steps[None, :]).astype(np.float32)
+    ys = (centres[:, 1:2] + normals[:, 1:2] * steps[None, :]).astype(np.float32)
+    h, w = image.shape[:2]
+    x0 = min(max(int(np.floor(xs.min())) - 1, 0), w - 1)
+    y0 = min(max(int(np.floor(ys.min())) - 1, 0), h - 1)
+    x1 = max(min(int(np.ceil(xs.max())) + 2, w), x0 + 1)
+    y1 = max(min(int(np.ceil(ys.max())) + 2, h), y0 + 1)
+    return np.asarray(
+        cv2.remap(
+            _linear(image[y0:y1, x0:x1], gamma),
+            xs - np.float32(x0),
+            ys - np.float32(y0),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        ),
+        dtype=np.float64,
+    )
+
+
+def _blur_variance(
+    prof: Array, steps: Array, bright: Array, dark: Array, swept: Array | None = None
+) -> tuple[float, float]:
     """The marker's isotropic blur variance across its edge (px^2). Each profile's blur comes
     from where it crosses 75 % and 25 % of the way from the marker's level to the plate's (for
     a Gaussian blur of sigma they lie 1.349 sigma apart; unlike the slope's moments they do not
-    see the noise of the flat parts); the medians of 16 arcs of the boundary (it comes in
-    contour order) smooth the noise, and the least of them is the isotropic part (motion blur
-    adds to some directions only)."""
+    see the noise of the flat parts), less the known streak's share (``swept``: px of the
+    streak along each profile; a uniform ramp of that length crosses them half of it apart);
+    the medians of 16 arcs of the boundary (it comes in contour order) smooth the noise, and
+    the least of them is the isotropic part (motion blur adds to some directions only). Also
+    the greatest of them, the streak's share kept: the widest ramp around the marker."""
     span = np.maximum(bright - dark, 1e-9)[:, None]
     level = (prof - dark[:, None]) / span
     sigma = (first_crossing(level, steps, 0.25) - first_crossing(level, steps, 0.75)) / 1.349
-    var = sigma * sigma
-    arcs = 16 if len(var) >= 64 else 1
-    usable = len(var) // arcs * arcs
+    raw = sigma * sigma
+    share = np.zeros_like(raw) if swept is None else (0.5 * swept / 1.349) ** 2
+    arcs = 16 if len(raw) >= 64 else 1
+    usable = len(raw) // arcs * arcs
     if usable == 0:
-        return 0.0
-    per_arc = _row_medians(var[:usable].reshape(arcs, -1))
-    found = per_arc[np.isfinite(per_arc)]
-    return float(found.min()) if len(found) else 0.0
+        return 0.0, 0.0
+    per_arc = _row_medians(np.vstack([raw[:usable], share[:usable]]).reshape(2 * arcs, -1))
+    wide, streak = per_arc[:arcs], per_arc[arcs:]
+    iso = wide - streak
+    if swept is not None and float(np.max(swept)) >= AREA_MIN_STREAK:
+        # Along the streak its ramp hides the lens's blur: the edges across it tell (those
+        # within ~9 degrees of it, where it sweeps under 15 % of its length along the profile).
+        across = (swept < ACROSS * float(np.max(swept))) & np.isfinite(raw)
+        if int(across.sum()) >= 8:
+            iso = np.array([float(np.median(raw[across] - share[across]))])
+    iso, wide = iso[np.isfinite(iso)], wide[np.isfinite(wide)]
+    return (
+        max(float(iso.min()), 0.0) if len(iso) else 0.0,
+        max(float(wide.max()), 0.0) if len(wide) else 0.0,
+    )
 
 
 def _row_medians(rows: Array) -> Array:

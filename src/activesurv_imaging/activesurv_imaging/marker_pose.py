@@ -115,7 +115,11 @@ def measure_marker(
         config = replace(config or DetectorConfig(), gamma=response)
     s = None if streak is None else np.asarray(streak, dtype=np.float64).reshape(2)
     if s is not None and np.all(np.isfinite(s)) and float(np.hypot(*s)) >= MIN_STREAK:
-        config = replace(config or DetectorConfig(), streak_length=float(np.hypot(*s)))
+        config = replace(
+            config or DetectorConfig(),
+            streak_length=float(np.hypot(*s)),
+            streak_angle=float(np.arctan2(s[1], s[0])),
+        )
     # With lens distortion the ellipse is fitted to the undistorted edges below: the
     # detector's own fit (of the distorted ones) only has to succeed, one unweighted pass.
     first: Fitter = _one_pass if camera.has_distortion and fitter is None else fit

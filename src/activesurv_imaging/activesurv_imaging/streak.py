@@ -78,12 +78,13 @@ def _inside_fraction(q: Array, s: Array, c: Array, M: Array) -> Array:
 
 
 def swept_contour(
-    e: Ellipse, streak: ArrayLike, blur_sigma: float = 0.0, n: int = SAMPLES
+    e: Ellipse, streak: ArrayLike, blur_sigma: float = 0.0, n: int = SAMPLES, area: bool = True
 ) -> Array:
     """(n, 2): the edge the detector finds on ``e`` swept along ``streak`` (px) and blurred
     by the lens (``blur_sigma`` px, isotropic): along each of the ellipse's normals, the
-    half-way crossing of the swept profile convolved with the lens's blur (the detector takes
-    the lens blur's own pull on a curved edge out itself)."""
+    area-equivalent edge of the swept profile (``area``; else the half-way crossing of the
+    profile convolved with the lens's blur); the detector takes the lens blur's own pull on a
+    curved edge out itself."""
     s = np.asarray(streak, dtype=np.float64).reshape(2)
     M = shape_matrix(e)
     c = np.asarray(e.center, dtype=np.float64)
@@ -97,14 +98,17 @@ def swept_contour(
     q = (p[:, None, :] + normal[:, None, :] * t[None, :, None]).reshape(-1, 2)
     f = _inside_fraction(q, s, c, M).reshape(n, m)
     dt = float(t[1] - t[0])
-    if sigma > 0.5 * dt:
-        f = gaussian_filter1d(f, sigma / dt, axis=1, mode='nearest')
-    # The first fall below one half, from the inside out, interpolated.
-    below = f < 0.5
-    first = np.maximum(np.argmax(below, axis=1), 1)
-    rows = np.arange(n)
-    v0, v1 = f[rows, first - 1], f[rows, first]
-    edge = t[first - 1] + dt * np.clip((v0 - 0.5) / np.maximum(v0 - v1, 1e-12), 0.0, 1.0)
+    if not area:
+        if sigma > 0.5 * dt:
+            f = gaussian_filter1d(f, sigma / dt, axis=1, mode='nearest')
+        # The first fall below one half, from the inside out, interpolated.
+        below = f < 0.5
+        first = np.maximum(np.argmax(below, axis=1), 1)
+        rows = np.arange(n)
+        v0, v1 = f[rows, first - 1], f[rows, first]
+        edge = t[first - 1] + dt * np.clip((v0 - 0.5) / np.maximum(v0 - v1, 1e-12), 0.0, 1.0)
+    else:  # the area-equivalent edge (a symmetric lens blur moves no area: not applied)
+        edge = dt * (f.sum(axis=1) - 0.5 * (f[:, 0] + f[:, -1])) - span
     return np.asarray(p + normal * edge[:, None], dtype=np.float64)
 
 

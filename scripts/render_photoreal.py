@@ -247,8 +247,10 @@ def _scene(
     return scene
 
 
-def _radiance(mi: Any, scene: dict[str, Any]) -> np.ndarray:
-    img = np.array(mi.render(mi.load_dict(scene)), dtype=np.float64)
+def _radiance(mi: Any, scene: dict[str, Any], seed: int = 0) -> np.ndarray:
+    """Luminance; ``seed``: the sampler's (sub-frames of one exposure need their own, or their
+    path-tracing noise is the same and does not average out)."""
+    img = np.array(mi.render(mi.load_dict(scene), seed=seed), dtype=np.float64)
     return 0.2126 * img[:, :, 0] + 0.7152 * img[:, :, 1] + 0.0722 * img[:, :, 2]
 
 
@@ -345,7 +347,7 @@ def _one(mi: Any, case: str, k: int, spp: int, out: Path) -> dict[str, Any]:
                     (0.05, 0.05, 0.04),
                 ),
             }
-            acc += _radiance(mi, moved)
+            acc += _radiance(mi, moved, seed=j)
         radiance = acc / subs
     else:
         radiance = _radiance(mi, scene)

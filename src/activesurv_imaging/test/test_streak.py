@@ -3,6 +3,7 @@ the streak its predicted velocity and the exposure time say it left."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -15,7 +16,7 @@ from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
 from activesurv_imaging.observation import image_streak, observe_marker
 from activesurv_imaging.streak import _fit_shape, from_shape, shape_matrix, swept_contour, unswept
 from activesurv_sim.optics import Optics, frame_optics
-from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
+from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise, look_at
 
 CAM = replace(dynamic_camera('cam1'), exposure_time=0.01)
 
@@ -108,3 +109,31 @@ def test_the_imager_is_told_the_response_and_exposure_camera_info_lacks() -> Non
     assert plain.camera is CAM  # told nothing: the calibration's own
     with pytest.raises(Exception, match='gamma'):
         ImagerConfig('cam1', gamma=9.0)
+
+
+def test_a_long_streak_through_a_gamma_curve_in_a_noisy_frame() -> None:
+    """25 px of streak, gamma 2.2, a quarter of the default's photo-electrons and twice its read
+    noise, some defocus; the predicted streak 3 % long. On such a ramp noise pulled each first
+    half-way crossing inwards (measured: 0.46 mm median, 0.85 mm p90 over 12 views); each edge
+    measured again centred on it as its area edge, which the streak model predicts: 0.07 mm."""
+    rng = np.random.default_rng(11)
+    renderer = Renderer(CAM)
+    marker, normal = np.zeros(3), np.array([0.0, -1.0, 0.0])
+    errors = []
+    for _ in range(8):
+        eye = marker + [rng.uniform(-0.2, 0.2), -rng.uniform(0.45, 0.7), rng.uniform(-0.08, 0.08)]
+        T = look_at(eye, marker + rng.normal(0.0, 0.003, 3))
+        inv = T.inverse()
+        a = rng.uniform(0.0, math.pi)
+        s = (25.0 * math.cos(a), 25.0 * math.sin(a))
+        optics = FrameOptics(defocus_sigma=rng.uniform(0.0, 1.5), streak=s, gamma=2.2)
+        noise = SensorNoise(electrons_per_level=10.0, read_noise=2.0)
+        img = renderer.render(
+            T, Scene((Plate.disc(marker, normal, 0.0125, 0.03),)), noise, rng, optics
+        )
+        m = measure_marker(
+            img, CAM, 0.0125, inv.rotate(normal), gamma=2.2, streak=(1.03 * s[0], 1.03 * s[1])
+        )
+        assert m.pose is not None, m.reason
+        errors.append(float(np.linalg.norm(m.pose.center - inv.apply(marker))))
+    assert np.median(errors) < 0.2e-3, errors

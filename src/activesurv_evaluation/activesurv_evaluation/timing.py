@@ -8,7 +8,9 @@ not in the bag):
 * ``stage_state``: the last assigned camera's first stage state stamped at or after the
   instant (where the camera was when the frame was taken);
 * ``frames``: each camera's frame for the demand (the frame stamped at the instant plus the
-  observation's ``frame_offset``); hardware runs keep no camera frames by default: ``{}``;
+  observation's ``frame_offset``) as the recorder heard it; where the bag has no camera frames
+  (hardware runs keep only those used, after imaging) the time the imager says the frame
+  reached it (the observation's ``frame_received``, on the imager's clock);
 * ``observations``: each camera's marker observation;
 * ``estimate``: the fused estimate (the demand's ``latency``);
 * ``compute``: each camera's imager's own processing of its frame (detect, fit, pose; from
@@ -23,6 +25,7 @@ cameras' processing (the cameras image in parallel, each on its own host on a ri
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -109,12 +112,18 @@ class StepTimes:
             spent = float(getattr(o, 'compute_time', 0.0))
             if spent > 0.0:
                 compute.setdefault(cam, spent)
-            arrivals = self._frames.get(cam)
-            if arrivals is None or int(o.status) == 3:  # no frame recorded, or none taken
+            if int(o.status) == 3:  # no frame taken
                 continue
-            got = arrivals.stamped(instant + float(getattr(o, 'frame_offset', 0.0)))
+            arrivals = self._frames.get(cam)
+            got = (
+                None
+                if arrivals is None
+                else arrivals.stamped(instant + float(getattr(o, 'frame_offset', 0.0)))
+            )
             if got is not None:
                 frames[cam] = got - instant
+            elif math.isfinite(told := float(getattr(o, 'frame_received', math.nan))):
+                frames[cam] = told  # the imager's own clock: frames not in the bag
         known = [s for s in states if s is not None]
         return {
             'stage_state': max(known) - instant if known and len(known) == len(states) else None,

@@ -73,3 +73,14 @@ def test_the_budget_is_drawn(tmp_path: Path) -> None:
     assert png is not None
     assert png.stat().st_size > 1000
     assert plot_budget([{'index': 0, 'timing': empty_timing()}], tmp_path / 'no.png', 'x') is None
+
+
+def test_without_frames_in_the_bag_the_imager_says_when_its_frame_came() -> None:
+    """A hardware run records only the frames used, after imaging: the frame step is the
+    observation's own ``frame_received`` (the imager's clock); NaN (older imagers) is none."""
+    steps = StepTimes()
+    told = SimpleNamespace(**vars(_obs('cam1', 0.012)), frame_received=0.041)
+    unknown = SimpleNamespace(**vars(_obs('cam2')), frame_received=float('nan'))
+    timing = steps.timing(3.0, ['cam1', 'cam2'], [(told, 3.05), (unknown, 3.06)], 3.07)
+    assert timing['frames'] == {'cam1': 0.041}
+    assert largest_wait([timing]) is not None

@@ -156,6 +156,7 @@ class ImagerConfig:
 
 TRIGGERS = ('hardware', 'software', 'free')
 FREE_JITTER = 0.003  # s: a free-running camera's stamps scatter by this much around its period
+RECEIVED_KEPT = 64  # arrival times of the newest frames kept (the latency budget)
 
 
 @dataclass(frozen=True)
@@ -195,6 +196,7 @@ class CaptureCore(Generic[F]):
         if camera is not None:
             self.set_camera(camera)
         self._to_gray = to_gray
+        self._received: dict[float, float] = {}  # exposure instant: arrival
         self.frames: FrameBuffer[F] = FrameBuffer(60)
         self.joint_names = mount.joint_names if isinstance(mount, CameraMount) else ()
         self.joints = TimeSeries(max(len(self.joint_names), 1))
@@ -236,9 +238,16 @@ class CaptureCore(Generic[F]):
             Request(index, demand_time, prior, _finite(velocity), _finite(position))
         )
 
-    def add_frame(self, stamp: float, frame: F) -> None:
-        """A frame by its stamp (its exposure instant is ``stamp - exposure_delay``)."""
-        self.frames.add(stamp - self.config.exposure_delay, frame)
+    def add_frame(self, stamp: float, frame: F, received: float | None = None) -> None:
+        """A frame by its stamp (its exposure instant is ``stamp - exposure_delay``);
+        ``received``: when it arrived (the latency budget's frame step)."""
+        exposed = stamp - self.config.exposure_delay
+        self.frames.add(exposed, frame)
+        if received is not None:
+            self._received[exposed] = received
+            if len(self._received) > RECEIVED_KEPT:
+                for old in sorted(self._received)[: len(self._received) - RECEIVED_KEPT]:
+                    del self._received[old]
 
     def add_joints(self, stamp: float, q: ArrayLike) -> bool:
         """Add a stage state; False (ignored) if it is not finite or has the wrong size."""
@@ -364,7 +373,12 @@ class CaptureCore(Generic[F]):
             obs = replace(
                 obs, position=obs.position + shift, motion_correction=shift, covariance=cov
             )
-        obs = replace(obs, compute_time=time.thread_time() - started)
+        got = self._received.get(stamp)
+        obs = replace(
+            obs,
+            compute_time=time.thread_time() - started,
+            frame_received=math.nan if got is None else got - r.demand_time,
+        )
         return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
 
 

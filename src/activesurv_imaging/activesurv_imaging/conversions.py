@@ -99,6 +99,7 @@ def observation_to_msg(obs: Observation, frame_id: str = 'world') -> MarkerObser
         msg.camera_pose = pose_from_transform(obs.camera_pose)
     msg.frame_offset = float(obs.frame_offset)
     msg.compute_time = float(obs.compute_time)
+    msg.frame_received = float(obs.frame_received)
     if obs.motion_correction is not None:
         c = msg.motion_correction
         c.x, c.y, c.z = (float(v) for v in obs.motion_correction)

@@ -116,7 +116,7 @@ class ImagerNode(Node):
             self._on_tick()
 
     def _on_image(self, msg: Image) -> None:
-        self.core.add_frame(time_to_sec(msg.header.stamp), msg)
+        self.core.add_frame(time_to_sec(msg.header.stamp), msg, self._now())
         if self.core.pending:
             self._on_tick()  # measure as soon as the frame is here, not on the next tick
 

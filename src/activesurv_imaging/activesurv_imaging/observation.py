@@ -42,6 +42,7 @@ class Observation:
     frame_offset: float = 0.0  # s: exposure instant minus demand instant
     motion_correction: Array | None = None  # m added for the object's motion over the offset
     compute_time: float = 0.0  # s: processing of the frame (detect, fit, pose)
+    frame_received: float = math.nan  # s: the frame's arrival minus the demand instant
     streak: Array | None = None  # px the marker's image moved over the exposure (taken out)
     blur: float = 0.0  # px: the view's blur beyond a sharp view's (the sensor model's b)
 

@@ -1,5 +1,6 @@
 """A bag is read with the message definitions stored in it: a run recorded before a message
-gained a field (MarkerObservation.compute_time, its last) still reads, and reports render."""
+gained fields (MarkerObservation.compute_time and frame_received, its last) still reads, and
+reports render."""
 
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     older = '\n'.join(
         line
         for line in (d / 'MarkerObservation.msg').read_text().splitlines()
-        if not line.startswith('float64 compute_time')
+        if not line.startswith(('float64 compute_time', 'float64 frame_received'))
+        and not line.lstrip().startswith('# (the imager')
     )
     ts = get_typestore(Stores.ROS2_JAZZY)
     types = get_types_from_msg(older, TYPE)
@@ -30,7 +32,7 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     )
     ts.register(types)
     msg = MarkerObservation(camera_id='cam2', demand_index=7, compute_time=0.004)
-    raw = serialize_message(msg)[:-8]  # the old layout: without its last float64
+    raw = serialize_message(msg)[:-16]  # the old layout: without its last two float64
     bag = tmp_path / 'old'
     writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
@@ -40,3 +42,4 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     (m,) = list(read_bag(bag, {'/marker_observations'}))
     assert (m.msg.camera_id, m.msg.demand_index) == ('cam2', 7)
     assert not hasattr(m.msg, 'compute_time')  # read as it was written
+    assert not hasattr(m.msg, 'frame_received')

@@ -37,6 +37,8 @@ Array = NDArray[np.float64]
 Fitter = Callable[[Array], Ellipse]
 
 _SPECK = np.ones((3, 3), np.uint8)
+STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden marker tries
+MIN_VISIBLE = 0.6  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
@@ -114,6 +116,9 @@ class Detection:
         edge_points: (N, 2) boundary points the ellipse was fitted to.
         candidates: how many marker-sized bright blobs were seen.
         blur_sigma: px, the isotropic blur found across the edge (lens, focus, pixel).
+        visible: the fraction of the marker's boundary measured (below 1: the marker was
+            partly hidden or ran into something as bright, and its ellipse was fitted to the
+            arc that showed: :func:`_partly_hidden`).
     """
 
     status: DetectionStatus
@@ -122,6 +127,7 @@ class Detection:
     edge_points: Array = field(default_factory=lambda: np.zeros((0, 2)))
     candidates: int = 0
     blur_sigma: float = 0.0
+    visible: float = 1.0
 
 
 def as_gray8(image: ArrayLike) -> NDArray[np.uint8]:
@@ -429,6 +435,13 @@ def detect_marker_detailed(
             candidates=candidates,
         )
     if not accepted:
+        if near is not None and reasons:
+            gate = cfg.near_gate if near_gate is None else near_gate
+            arc = _partly_hidden(img, cfg, np.asarray(near, dtype=np.float64).reshape(2), gate)
+            if arc is not None:
+                found_arc = _fit_blob(img, arc[:2], cfg, fitter, candidates, robust=True)
+                if found_arc.status is DetectionStatus.OK:
+                    return replace(found_arc, visible=arc[2])
         if reasons:
             return Detection(DetectionStatus.REJECTED, reasons[0], candidates=candidates)
         return Detection(
@@ -540,18 +553,110 @@ def _marker_blobs(
     return accepted, reasons, candidates
 
 
+def _partly_hidden(
+    img: NDArray[np.uint8], cfg: DetectorConfig, near: Array, gate: float
+) -> tuple[NDArray[Any], Ellipse, float] | None:
+    """The marker at ``near`` when its blob failed as a whole (it touches the border or is not
+    one ellipse: the marker partly hidden behind something, or joined to something as bright):
+    the ellipse most of the blob's outline lies on (tried: the ellipses of stretches of the
+    outline, a sixth to a third of it long; on it: within 1.5 px), its centre within ``gate``
+    px of ``near``, at least ``MIN_VISIBLE`` of its boundary shown. Returns the outline's
+    points on it (in contour order), that ellipse and the fraction of its boundary they cover;
+    None if there is no such marker."""
+    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, _SPECK)
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    point = (float(near[0]), float(near[1]))
+    hit = [c for c in contours if len(c) >= 20 and cv2.pointPolygonTest(c, point, False) >= 0]
+    if not hit:
+        return None
+    contour = hit[0].reshape(-1, 2)
+    h, w = img.shape
+    m = cfg.border_margin + 1
+    inside = (
+        (contour[:, 0] >= m)
+        & (contour[:, 1] >= m)
+        & (contour[:, 0] < w - m)
+        & (contour[:, 1] < h - m)
+    )
+    pts = contour.astype(np.float64)
+    n = len(pts)
+    if int(inside.sum()) < 20:
+        return None
+    # Hypotheses: the ellipses of stretches of the outline (the visible arc is one stretch of
+    # it, the rest is what hides or joins it), scored by how much of the outline lies on them.
+    best: tuple[int, Ellipse] | None = None
+    for span in (n // 6, n // 4, n // 3):
+        for start in range(0, n, max(n // STRETCHES, 1)):
+            idx = np.arange(start, start + span) % n
+            idx = idx[inside[idx]]
+            if len(idx) < 10:
+                continue
+            e = _cv_ellipse(pts[idx].astype(np.float32))
+            if e is None or not _marker_sized(e, cfg):
+                continue
+            if float(np.hypot(*(e.center - near))) > gate:
+                continue
+            score = int(np.count_nonzero(inside & (sampson_distances(e.conic(), pts) < 1.5)))
+            if best is None or score > best[0]:
+                best = (score, e)
+    if best is None:
+        return None
+    ellipse = best[1]
+    for _ in range(2):  # refit to all its inliers
+        on = inside & (sampson_distances(ellipse.conic(), pts) < 1.5)
+        refit = _cv_ellipse(pts[on].astype(np.float32)) if on.sum() >= 5 else None
+        if refit is None or not _marker_sized(refit, cfg):
+            return None
+        ellipse = refit
+    on = inside & (sampson_distances(ellipse.conic(), pts) < 1.5)
+    d = pts[on] - ellipse.center
+    ca, sa = math.cos(ellipse.angle), math.sin(ellipse.angle)
+    phi = np.arctan2(-sa * d[:, 0] + ca * d[:, 1], ca * d[:, 0] + sa * d[:, 1])
+    bins = np.unique(np.floor((phi + math.pi) / (2.0 * math.pi) * 72.0).astype(int))
+    visible = len(bins) / 72.0
+    if visible < MIN_VISIBLE or float(np.hypot(*(ellipse.center - near))) > gate:
+        return None
+    return contour[on].reshape(-1, 1, 2), ellipse, visible
+
+
+def _cv_ellipse(points: NDArray[np.float32]) -> Ellipse | None:
+    """OpenCV's ellipse through ``points`` (at least five), or None."""
+    (cx, cy), (w, h), ang = cv2.fitEllipse(points)
+    if not (w > 0 and h > 0 and math.isfinite(cx) and math.isfinite(cy)):
+        return None
+    a, b = 0.5 * max(w, h), 0.5 * min(w, h)
+    angle = math.radians(ang) + (0.0 if w >= h else math.pi / 2)
+    return Ellipse(np.array([cx, cy]), (a, b), angle % math.pi)
+
+
+def _marker_sized(e: Ellipse, cfg: DetectorConfig) -> bool:
+    a, b = e.semi_axes
+    return cfg.min_semi_minor <= b and a <= cfg.max_semi_major and b / a >= cfg.min_axis_ratio
+
+
 def _fit_blob(
     img: NDArray[np.uint8],
     blob: tuple[NDArray[Any], Ellipse],
     cfg: DetectorConfig,
     fitter: Fitter | None,
     candidates: int,
+    robust: bool = False,
 ) -> Detection:
-    """The weighted ellipse fit of one marker blob's sub-pixel edges."""
+    """The weighted ellipse fit of one marker blob's sub-pixel edges (``robust``: the edges
+    farther than 3 MADs off a first fit are dropped, as where a partly hidden marker's arc meets
+    what hides it)."""
     fit: Fitter = fit_ellipse if fitter is None else fitter
     contour, coarse = blob
     boundary = contour.reshape(-1, 2).astype(np.float64)
     edges, var = subpixel_edges(img, boundary, coarse, cfg) if cfg.subpixel else (boundary, 0.0)
+    if robust and len(edges) >= 12:
+        try:
+            d = sampson_distances(fit_ellipse(edges, iterations=0).conic(), edges)
+        except EllipseFitError:
+            d = np.zeros(len(edges))
+        mad = float(np.median(np.abs(d - np.median(d)))) + 1e-3
+        edges = edges[d <= float(np.median(d)) + 3.0 * 1.4826 * mad]
     if len(edges) < max(12, len(boundary) // 2):
         return Detection(
             DetectionStatus.REJECTED,

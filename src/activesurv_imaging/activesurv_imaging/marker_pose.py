@@ -51,6 +51,8 @@ class MarkerMeasurement:
         swept: the ellipse as measured when a streak was taken out of it (``ellipse`` is
             then the marker at mid-exposure, unswept: :mod:`activesurv_imaging.streak`).
         blur_sigma: px, the isotropic blur its edges showed (lens, focus, pixel).
+        visible: the fraction of its boundary measured (below 1: partly hidden, fitted to the
+            arc that showed).
     """
 
     status: MeasurementStatus
@@ -61,6 +63,7 @@ class MarkerMeasurement:
     margin: float = 0.0
     swept: Ellipse | None = None
     blur_sigma: float = 0.0
+    visible: float = 1.0
 
     @property
     def pose(self) -> CirclePose | None:
@@ -155,6 +158,7 @@ def measure_marker(
             ellipse,
             swept=swept,
             blur_sigma=det.blur_sigma,
+            visible=det.visible,
         )
     if prior_normal is None:
         # Without a prior, prefer the pose seen more frontally (the smaller bearing).
@@ -164,5 +168,13 @@ def measure_marker(
     else:
         chosen, margin = choose_pose(poses, prior_normal)
     return MarkerMeasurement(
-        MeasurementStatus.OK, '', ellipse, poses, chosen, margin, swept, det.blur_sigma
+        MeasurementStatus.OK,
+        '',
+        ellipse,
+        poses,
+        chosen,
+        margin,
+        swept,
+        det.blur_sigma,
+        det.visible,
     )

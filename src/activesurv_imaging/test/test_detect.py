@@ -117,3 +117,41 @@ def test_rendering_is_seeded_and_anti_aliased() -> None:
     )
     levels = np.unique(ideal)
     assert len(levels) > 10  # edge pixels hold intermediate, supersampled levels
+
+
+def test_a_partly_hidden_marker_is_measured_from_the_arc_that_shows() -> None:
+    """A bright bar in front of the lower fifth of the disc joins its blob and runs to the
+    image border: refused as a whole, as before; given where the marker should be (as a run
+    gives it), its ellipse is fitted to the arc that shows, and the measurement says how much
+    of it that was (a photoreal view like it: 0.05 mm)."""
+    from activesurv_common.sensor_model import SensorModel
+    from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
+    from activesurv_imaging.observation import observe_marker
+
+    cam = dynamic_camera()
+    marker, normal = np.array([0.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.0])
+    T = look_at([0.03, -0.55, 0.04], marker)
+    bar = Plate(np.array([0.0, -0.005, -0.016]), normal, np.array([1.0, 0.0, 0.0]), (0.2, 0.0075))
+    bar = Plate(bar.center, bar.normal, bar.x_axis, bar.half_size, plate_level=150.0)
+    scene = Scene((Plate.disc(marker, normal, 0.0125), bar))
+    img = render(cam, T, scene, SensorNoise(), np.random.default_rng(4))
+    inv = T.inverse()
+    centre, n = inv.apply(marker), inv.rotate(normal)
+    whole = measure_marker(img, cam, 0.0125, n)
+    assert whole.status is not MeasurementStatus.OK
+    near = cam.project(centre[None, :])[0] + [2.0, -3.0]
+    m = measure_marker(img, cam, 0.0125, n, near=near, near_gate=40.0)
+    assert m.status is MeasurementStatus.OK, m.reason
+    assert m.pose is not None
+    assert 0.6 <= m.visible < 0.95
+    assert np.linalg.norm(m.pose.center - centre) < 0.5e-3
+    # The reading's covariance grows with what was hidden.
+    model = SensorModel.load(None)
+    hidden = observe_marker(img, cam, T, 0.0125, model, 'cam1', 0, 0.0, normal, False, marker)
+    clear = observe_marker(
+        render(cam, T, Scene((Plate.disc(marker, normal, 0.0125),)), SensorNoise(),
+               np.random.default_rng(4)),
+        cam, T, 0.0125, model, 'cam1', 0, 0.0, normal, False, marker,
+    )  # fmt: skip
+    assert hidden.covariance is not None and clear.covariance is not None
+    assert np.trace(hidden.covariance) > 1.2 * np.trace(clear.covariance)

@@ -35,8 +35,8 @@ def test_ours_on_the_stored_set_against_plain_opencv(stored: tuple[list, dict]) 
     views, _ = stored
     ours = summary([measure_ours(v) for v in views])
     cv = summary([measure_opencv(v) for v in views])
-    # Measured (docs/performance.md): ours 0.06-0.09 mm median in the still, in-focus cases,
-    # 0.17 mm defocused, 0.29 mm under 11-26 px of motion blur; plain OpenCV about 1 mm (tens
+    # Measured (docs/performance.md): ours 0.06-0.11 mm median in the still, in-focus cases,
+    # 0.07 mm defocused, 0.27 mm under 11-26 px of motion blur; plain OpenCV about 1 mm (tens
     # of mm under motion blur).
     for case in ('nominal', 'glossy', 'side_light', 'bright_table', 'defocus'):
         assert ours[case]['detected'] == 1.0, case
@@ -48,7 +48,9 @@ def test_ours_on_the_stored_set_against_plain_opencv(stored: tuple[list, dict]) 
     # Beside a second disc the edges searched from the coarse boundary were pixels off in one
     # view (10.9 mm); measured again centred on each edge, every view is within a millimetre.
     assert ours['distractor']['p90_mm'] <= 1.0, ours['distractor']
-    assert ours['all']['detected'] >= 0.9
+    # Every view measured, given the predicted position: the two whose disc runs into a bright
+    # bar in front of it (refused as one blob touching the border) from the arc that shows.
+    assert ours['all']['detected'] == 1.0, ours['all']
     assert 3.0 * ours['all']['median_mm'] < cv['all']['median_mm']
 
 

@@ -153,5 +153,6 @@ def test_a_partly_hidden_marker_is_measured_from_the_arc_that_shows() -> None:
                np.random.default_rng(4)),
         cam, T, 0.0125, model, 'cam1', 0, 0.0, normal, False, marker,
     )  # fmt: skip
-    assert hidden.covariance is not None and clear.covariance is not None
+    assert hidden.covariance is not None
+    assert clear.covariance is not None
     assert np.trace(hidden.covariance) > 1.2 * np.trace(clear.covariance)

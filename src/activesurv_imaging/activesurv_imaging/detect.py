@@ -38,7 +38,7 @@ Fitter = Callable[[Array], Ellipse]
 
 _SPECK = np.ones((3, 3), np.uint8)
 STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden marker tries
-MIN_VISIBLE = 0.6  # of its boundary a partly hidden marker must show to be measured
+MIN_VISIBLE = 0.75  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).

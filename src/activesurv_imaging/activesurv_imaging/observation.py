@@ -167,7 +167,7 @@ def observe_marker(
     blur = model.blur_of(m.blur_sigma, length) if model.models_blur else 0.0
     cov = model.world_covariance(d, theta, T_world_camera.R, blur)
     if m.visible < 1.0:  # fitted to the arc that showed: its size (distance) the less sure
-        cov = cov / max(m.visible, 0.1) ** 2
+        cov = cov / max(m.visible, 0.1) ** 4
     left = _streak_variance(m, d)
     if left > 0.0:
         ray = T_world_camera.rotate(c / d)

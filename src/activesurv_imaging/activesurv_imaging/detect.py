@@ -149,14 +149,7 @@ def as_gray8(image: ArrayLike) -> NDArray[np.uint8]:
 
 
 def _coarse(contour: NDArray[Any]) -> Ellipse | None:
-    if len(contour) < 5:
-        return None
-    (cx, cy), (w, h), ang = cv2.fitEllipse(contour)
-    if not (w > 0 and h > 0):
-        return None
-    a, b = 0.5 * max(w, h), 0.5 * min(w, h)
-    angle = math.radians(ang) + (0.0 if w >= h else math.pi / 2)
-    return Ellipse(np.array([cx, cy]), (a, b), angle % math.pi)
+    return _cv_ellipse(contour) if len(contour) >= 5 else None
 
 
 def _outward_normals(ell: Ellipse, pts: Array) -> Array:
@@ -620,8 +613,8 @@ def _partly_hidden(
     return contour[on].reshape(-1, 1, 2), ellipse, visible
 
 
-def _cv_ellipse(points: NDArray[np.float32]) -> Ellipse | None:
-    """OpenCV's ellipse through ``points`` (at least five), or None."""
+def _cv_ellipse(points: NDArray[Any]) -> Ellipse | None:
+    """OpenCV's ellipse through ``points`` (at least five; a contour or float32), or None."""
     (cx, cy), (w, h), ang = cv2.fitEllipse(points)
     if not (w > 0 and h > 0 and math.isfinite(cx) and math.isfinite(cy)):
         return None

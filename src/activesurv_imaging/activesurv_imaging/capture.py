@@ -373,13 +373,18 @@ class CaptureCore(Generic[F]):
             obs = replace(
                 obs, position=obs.position + shift, motion_correction=shift, covariance=cov
             )
+        return perturb(
+            self._timed(obs, r, stamp, started), c.inject_bias_x, c.inject_noise, self._rng
+        )
+
+    def _timed(self, obs: Observation, r: Request, stamp: float, started: float) -> Observation:
+        """``obs`` with its imaging's CPU time and when its frame (exposed at ``stamp``) came."""
         got = self._received.get(stamp)
-        obs = replace(
+        return replace(
             obs,
             compute_time=time.thread_time() - started,
             frame_received=math.nan if got is None else got - r.demand_time,
         )
-        return perturb(obs, c.inject_bias_x, c.inject_noise, self._rng)
 
 
 def with_pointing(

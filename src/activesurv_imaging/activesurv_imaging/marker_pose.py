@@ -75,6 +75,21 @@ def _one_pass(points: Array) -> Ellipse:
     return fit_ellipse(points, iterations=0)
 
 
+def _for_view(
+    config: DetectorConfig | None, response: float, streak: Array | None
+) -> DetectorConfig | None:
+    """The detector's limits told the camera's response and the marker's streak (px)."""
+    if response != 1.0:
+        config = replace(config or DetectorConfig(), gamma=response)
+    if streak is not None and np.all(np.isfinite(streak)) and np.hypot(*streak) >= MIN_STREAK:
+        config = replace(
+            config or DetectorConfig(),
+            streak_length=float(np.hypot(*streak)),
+            streak_angle=float(np.arctan2(streak[1], streak[0])),
+        )
+    return config
+
+
 def measure_marker(
     image: ArrayLike,
     camera: CameraModel,
@@ -113,16 +128,8 @@ def measure_marker(
         ImagingError: if ``image`` is not an 8-bit image.
     """
     fit: Fitter = fit_ellipse if fitter is None else fitter
-    response = camera.gamma if gamma is None else float(gamma)
-    if response != 1.0:
-        config = replace(config or DetectorConfig(), gamma=response)
     s = None if streak is None else np.asarray(streak, dtype=np.float64).reshape(2)
-    if s is not None and np.all(np.isfinite(s)) and float(np.hypot(*s)) >= MIN_STREAK:
-        config = replace(
-            config or DetectorConfig(),
-            streak_length=float(np.hypot(*s)),
-            streak_angle=float(np.arctan2(s[1], s[0])),
-        )
+    config = _for_view(config, camera.gamma if gamma is None else float(gamma), s)
     # With lens distortion the ellipse is fitted to the undistorted edges below: the
     # detector's own fit (of the distorted ones) only has to succeed, one unweighted pass.
     first: Fitter = _one_pass if camera.has_distortion and fitter is None else fit

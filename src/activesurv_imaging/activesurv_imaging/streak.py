@@ -2,17 +2,17 @@
 
 A marker that moves during the exposure is imaged as its ellipse swept along the streak ``s``
 (px: where its image went from the exposure's start to its end, at constant velocity): the
-image is the ellipse convolved with a line segment. The detector measures the half-way contour
-of that blur (:mod:`activesurv_imaging.detect`). Along the motion the half-way point of a swept
-edge is the edge at mid-exposure; across it, where the segment runs along the edge, less than
-half of it lies inside, and the contour is pulled in by about ``|s|^2 / (24 r)`` (``r``: the
-local radius of curvature). So the fitted ellipse has the right centre (the marker at
+image is the ellipse convolved with a line segment. Across a known streak the detector measures
+each edge as its area-equivalent edge (:mod:`activesurv_imaging.detect`). Along the motion
+that is the edge at mid-exposure; across it, where the segment runs along the edge, less of it
+lies inside, and the edge is pulled in by about ``|s|^2 / (24 r)`` (``r``: the local radius of
+curvature). So the fitted ellipse has the right centre (the marker at
 mid-exposure, the frame's instant) but is too narrow across the motion: a marker 600 mm away
 swept 18 px reads 0.16 mm too far (its size is its distance).
 
-:func:`unswept` inverts it: it finds the ellipse whose swept half-way contour is the measured
-one, by fixed-point iteration on the ellipse's shape matrix (well defined for a circle, unlike
-the axes' angle): ``E <- E + (measured - swept(E))``, each ``swept(E)`` computed from the
+:func:`unswept` inverts it: it finds the ellipse whose swept contour is the measured one, by
+fixed-point iteration on the ellipse's shape matrix (well defined for a circle, unlike the
+axes' angle): ``E <- E + (measured - swept(E))``, each ``swept(E)`` computed from the
 swept profile along each normal (the part of the segment inside the ellipse is the interval
 between a quadratic's roots) as the detector sees it: the area-equivalent edge. Three rounds
 converge to a thousandth of a pixel.
@@ -24,7 +24,6 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import gaussian_filter1d
 
 from activesurv_imaging.ellipse import Ellipse
 
@@ -78,13 +77,12 @@ def _inside_fraction(q: Array, s: Array, c: Array, M: Array) -> Array:
 
 
 def swept_contour(
-    e: Ellipse, streak: ArrayLike, blur_sigma: float = 0.0, n: int = SAMPLES, area: bool = True
+    e: Ellipse, streak: ArrayLike, blur_sigma: float = 0.0, n: int = SAMPLES
 ) -> Array:
     """(n, 2): the edge the detector finds on ``e`` swept along ``streak`` (px) and blurred
     by the lens (``blur_sigma`` px, isotropic): along each of the ellipse's normals, the
-    area-equivalent edge of the swept profile (``area``; else the half-way crossing of the
-    profile convolved with the lens's blur); the detector takes the lens blur's own pull on a
-    curved edge out itself."""
+    area-equivalent edge of the swept profile (a symmetric blur moves no area edge but by its
+    pull on a curved one, which the detector takes out itself; the blur widens the span)."""
     s = np.asarray(streak, dtype=np.float64).reshape(2)
     M = shape_matrix(e)
     c = np.asarray(e.center, dtype=np.float64)
@@ -98,17 +96,7 @@ def swept_contour(
     q = (p[:, None, :] + normal[:, None, :] * t[None, :, None]).reshape(-1, 2)
     f = _inside_fraction(q, s, c, M).reshape(n, m)
     dt = float(t[1] - t[0])
-    if not area:
-        if sigma > 0.5 * dt:
-            f = gaussian_filter1d(f, sigma / dt, axis=1, mode='nearest')
-        # The first fall below one half, from the inside out, interpolated.
-        below = f < 0.5
-        first = np.maximum(np.argmax(below, axis=1), 1)
-        rows = np.arange(n)
-        v0, v1 = f[rows, first - 1], f[rows, first]
-        edge = t[first - 1] + dt * np.clip((v0 - 0.5) / np.maximum(v0 - v1, 1e-12), 0.0, 1.0)
-    else:  # the area-equivalent edge (a symmetric lens blur moves no area: not applied)
-        edge = dt * (f.sum(axis=1) - 0.5 * (f[:, 0] + f[:, -1])) - span
+    edge = dt * (f.sum(axis=1) - 0.5 * (f[:, 0] + f[:, -1])) - span  # the light inside
     return np.asarray(p + normal * edge[:, None], dtype=np.float64)
 
 
@@ -126,8 +114,8 @@ def _fit_shape(points: Array) -> tuple[Array, Array]:
 
 def unswept(measured: Ellipse, streak: ArrayLike, blur_sigma: float = 0.0) -> Ellipse:
     """The ellipse that, swept along ``streak`` (px over the exposure) and blurred by
-    ``blur_sigma`` px, has the half-way contour ``measured``; ``measured`` itself for a streak
-    too short to matter or too long to be one. Keeps the measured fit's residual."""
+    ``blur_sigma`` px, has the (area-equivalent) contour ``measured``; ``measured`` itself for
+    a streak too short to matter or too long to be one. Keeps the measured fit's residual."""
     s = np.asarray(streak, dtype=np.float64).reshape(2)
     length = float(np.hypot(*s))
     if not (math.isfinite(length) and MIN_STREAK <= length <= MAX_STREAK):

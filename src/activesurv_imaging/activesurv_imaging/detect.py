@@ -475,6 +475,13 @@ def _for_frame(levels: tuple[int, int], cfg: DetectorConfig) -> DetectorConfig:
     return cfg if edge == cfg.min_contrast else replace(cfg, min_contrast=edge)
 
 
+def _bright(img: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The frame's bright regions: Otsu's threshold, its noise specks opened away (they
+    became hundreds of contours: a noisy frame's contour search took 4 ms)."""
+    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    return np.asarray(cv2.morphologyEx(binary, cv2.MORPH_OPEN, _SPECK), dtype=np.uint8)
+
+
 def _marker_blobs(
     img: NDArray[np.uint8], cfg: DetectorConfig, levels: tuple[int, int]
 ) -> Detection | tuple[list[tuple[NDArray[Any], Ellipse]], list[str], int]:
@@ -488,10 +495,7 @@ def _marker_blobs(
             f'no contrast in the image (grey levels {lo:.0f}..{hi:.0f}): '
             'black, saturated or blank frame',
         )
-    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    # Noise leaves specks on both sides of the threshold: an opening clears them before they
-    # become hundreds of contours (a noisy frame's contour search took 4 ms).
-    binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, _SPECK)
+    binary = _bright(img)
     contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hierarchy is None:
         return Detection(DetectionStatus.NOT_FOUND, 'no bright region in the image')
@@ -556,8 +560,7 @@ def _partly_hidden(
     px of ``near``, at least ``MIN_VISIBLE`` of its boundary shown. Returns the outline's
     points on it (in contour order), that ellipse and the fraction of its boundary they cover;
     None if there is no such marker."""
-    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, _SPECK)
+    binary = _bright(img)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     point = (float(near[0]), float(near[1]))
     hit = [c for c in contours if len(c) >= 20 and cv2.pointPolygonTest(c, point, False) >= 0]

@@ -26,6 +26,8 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
+from activesurv_common.geometry import cross3
+
 Array = NDArray[np.float64]
 KINDS = ('box', 'cylinder')
 _END = 1e-6  # fraction of a segment left out at each end
@@ -165,9 +167,9 @@ def plate_box(centre: ArrayLike, normal: ArrayLike, half_size: float) -> Box:
     c = np.asarray(centre, dtype=np.float64).reshape(3)
     n = np.asarray(normal, dtype=np.float64).reshape(3)
     n = n / max(float(np.linalg.norm(n)), 1e-12)
-    x = np.cross([0.0, 0.0, 1.0], n)
+    x = cross3([0.0, 0.0, 1.0], n)
     x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0.0, 0.0])
-    y = np.cross(n, x)
+    y = cross3(n, x)
     extent = half_size * (np.abs(x) + np.abs(y)) + 0.5 * PLATE_THICKNESS * np.abs(n)
     size = 2.0 * extent
     return Box(
@@ -267,9 +269,9 @@ def rim_points(marker: ArrayLike, normal: ArrayLike, radius: float, n: int = 8) 
     z = np.asarray(normal, dtype=np.float64).reshape(3)
     z = z / max(float(np.linalg.norm(z)), 1e-12)
     helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    u = np.cross(z, helper)
+    u = cross3(z, helper)
     u /= np.linalg.norm(u)
-    v = np.cross(z, u)
+    v = cross3(z, u)
     a = 2.0 * np.pi * np.arange(n) / n
     rim = c + radius * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
     return np.vstack([c, rim])

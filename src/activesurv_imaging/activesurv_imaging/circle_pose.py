@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from activesurv_common.geometry import angle_between, unit
+from activesurv_common.geometry import angle_between, cross3, unit
 from activesurv_imaging.ellipse import Ellipse
 from activesurv_imaging.errors import CirclePoseError
 
@@ -47,8 +47,8 @@ class CirclePose:
 def _in_plane_circle(Q: Array, n: Array) -> tuple[Array, float]:
     """Centre and radius of the cut of the cone ``X^T Q X = 0`` by the plane ``n . X = 1``."""
     helper = np.eye(3)[int(np.argmin(np.abs(n)))]
-    e1 = unit(np.cross(n, helper))
-    e2 = np.cross(n, e1)
+    e1 = unit(cross3(n, helper))
+    e2 = cross3(n, e1)
     B = np.column_stack([e1, e2, n])  # plane coordinates (u, v, 1) -> camera frame
     M = B.T @ Q @ B
     a = 0.5 * (M[0, 0] + M[1, 1])

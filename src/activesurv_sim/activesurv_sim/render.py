@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.camera_model import CameraModel
-from activesurv_common.geometry import Transform, as_vector3, unit
+from activesurv_common.geometry import Transform, as_vector3, cross3, unit
 from activesurv_sim.errors import RenderError
 
 Array = NDArray[np.float64]
@@ -129,14 +129,14 @@ class Plate:
 
     @property
     def y_axis(self) -> Array:
-        return np.cross(self.normal, self.x_axis)
+        return cross3(self.normal, self.x_axis)
 
 
 def _orthogonal_axis(n: Array, x_axis: ArrayLike) -> Array:
     x = as_vector3(x_axis, 'x_axis')
     x = x - (x @ n) * n
     if np.linalg.norm(x) < 1e-9:  # x_axis parallel to the normal: pick any in-plane direction
-        x = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        x = cross3(n, np.eye(3)[int(np.argmin(np.abs(n)))])
     return unit(x)
 
 
@@ -756,9 +756,9 @@ def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) 
     if np.linalg.norm(t - e) < 1e-12:
         raise RenderError('eye and target coincide')
     z = unit(t - e)
-    x = np.cross(z, as_vector3(up, 'up'))
+    x = cross3(z, as_vector3(up, 'up'))
     if np.linalg.norm(x) < 1e-9:
         raise RenderError('viewing direction is parallel to up; pick another up vector')
     x = unit(x)
-    y = np.cross(z, x)
+    y = cross3(z, x)
     return Transform(np.column_stack([x, y, z]), e)

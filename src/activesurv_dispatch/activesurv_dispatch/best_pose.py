@@ -101,6 +101,25 @@ def view_batch(
     With ``occluders``, a camera whose line of sight to the marker passes within the marker's
     radius (plus the prediction's margin) of one is not in view: eq. 1's occluded case.
     """
+    (vis, inside), d, bearing = _views(
+        sensor, q, target, radius, model, margin_px, occluders, (target.sigma,)
+    )
+    return vis[0], d, bearing, inside[0]
+
+
+def _views(
+    sensor: Sensor,
+    q: Array,
+    target: Target,
+    radius: float,
+    model: SensorModel,
+    margin_px: float,
+    occluders: Sequence[Obstacle],
+    sigmas: Sequence[float],
+) -> tuple[tuple[list[Array], list[Array]], Array, Array]:
+    """:func:`view_batch` for the target's position uncertainty taken as each of ``sigmas``
+    (only the in-view margins differ: the views' geometry and variances are computed once).
+    Returns ((visibility per sigma, in_view per sigma), distance, bearing)."""
     centres, R = camera_frames(sensor, q)
     rel = target.position[None, :] - centres
     d = np.linalg.norm(rel, axis=1)
@@ -110,21 +129,25 @@ def view_batch(
     z = np.maximum(p[:, 2], 1e-9)
     u = cam.fx * p[:, 0] / z + cam.cx
     v = cam.fy * p[:, 1] / z + cam.cy
-    r_px = cam.fx * (radius + VIEW_SIGMAS * target.sigma) / z + margin_px
-    in_view = (
-        (p[:, 2] > radius)
-        & (u - r_px >= 0)
-        & (u + r_px <= cam.width - 1)
-        & (v - r_px >= 0)
-        & (v + r_px <= cam.height - 1)
-        & (bearing < model.max_bearing)
-    )
-    if occluders:
-        grown = inflate(occluders, radius + VIEW_SIGMAS * target.sigma)
-        in_view &= ~blocked(centres, target.position, grown)
+    seen = (p[:, 2] > radius) & (bearing < model.max_bearing)
     blur = predicted_blur(sensor, target, rel, d, model)
     vis = visibility_from_variances(model.variances_batch(d, bearing, blur))
-    return np.where(in_view, vis, 0.0), d, bearing, in_view
+    out_vis, out_in = [], []
+    for sigma in sigmas:
+        r_px = cam.fx * (radius + VIEW_SIGMAS * sigma) / z + margin_px
+        in_view = (
+            seen
+            & (u - r_px >= 0)
+            & (u + r_px <= cam.width - 1)
+            & (v - r_px >= 0)
+            & (v + r_px <= cam.height - 1)
+        )
+        if occluders:
+            grown = inflate(occluders, radius + VIEW_SIGMAS * sigma)
+            in_view &= ~blocked(centres, target.position, grown)
+        out_vis.append(np.where(in_view, vis, 0.0))
+        out_in.append(in_view)
+    return (out_vis, out_in), d, bearing
 
 
 def blur_loss(
@@ -187,7 +210,9 @@ def best_achievable_pose(
     """The reachable configuration with the highest visibility of ``target`` in ``dt`` seconds.
 
     A static camera (or ``dt <= 0``) can only stay where it is. A pose whose line of sight
-    ``occluders`` block sees nothing (:func:`view_batch`).
+    ``occluders`` block sees nothing (:func:`view_batch`). When no pose keeps the whole
+    uncertainty region (``target.sigma``) in view, the best that keeps the prediction itself in
+    view; when none does, the configuration nearest the current one.
     """
     q0 = np.asarray(current, dtype=np.float64)
     lo, hi = reachable_box(sensor, q0, max(dt, 0.0))
@@ -201,33 +226,26 @@ def best_achievable_pose(
         return np.column_stack([lin, yaw]) if sensor.has_linear else yaw[:, None]
 
     q = candidates(s)
-    vis, d, b, _ = view_batch(sensor, q, target, radius, model, occluders=occluders)
-    best = int(np.argmax(vis))
-    if sensor.has_linear and len(s) > 2 and hi[0] > lo[0]:
-        step = (hi[0] - lo[0]) / (samples - 1)
-        fine = np.clip(np.linspace(q[best, 0] - step, q[best, 0] + step, 11), lo[0], hi[0])
-        qf = candidates(fine)
-        vf, df, bf, inf = view_batch(sensor, qf, target, radius, model, occluders=occluders)
-        j = int(np.argmax(vf))
-        if vf[j] > vis[best]:
-            return Candidate(qf[j], float(vf[j]), float(df[j]), float(bf[j]), bool(inf[j]))
-    if vis[best] <= 0.0 and target.sigma > 0.0:
-        # Nothing keeps the whole uncertainty region in view: still aim at the prediction.
-        return best_achievable_pose(
-            sensor,
-            q0,
-            Target(target.position, target.normal, 0.0, target.velocity),
-            dt,
-            model,
-            radius,
-            samples,
-            occluders,
-        )
-    if vis[best] <= 0.0:
-        # Nothing reachable sees it: keep the configuration nearest to the current one.
-        j = int(np.argmin(np.abs(q[:, 0] - q0[0]))) if sensor.has_linear else 0
-        return Candidate(q[j], 0.0, float(d[j]), float(b[j]), False)
-    return Candidate(q[best], float(vis[best]), float(d[best]), float(b[best]), True)
+    # The coarse grid's views for the uncertainty region and, should nothing keep it in view,
+    # for the prediction alone: the same poses and geometry, two in-view margins.
+    sigmas = (target.sigma, 0.0) if target.sigma > 0.0 else (0.0,)
+    (coarse, _), d, b = _views(sensor, q, target, radius, model, 8.0, occluders, sigmas)
+    for sigma, vis in zip(sigmas, coarse, strict=True):
+        aimed = Target(target.position, target.normal, sigma, target.velocity)
+        best = int(np.argmax(vis))
+        if sensor.has_linear and len(s) > 2 and hi[0] > lo[0]:
+            step = (hi[0] - lo[0]) / (samples - 1)
+            fine = np.clip(np.linspace(q[best, 0] - step, q[best, 0] + step, 11), lo[0], hi[0])
+            qf = candidates(fine)
+            vf, df, bf, inf = view_batch(sensor, qf, aimed, radius, model, occluders=occluders)
+            j = int(np.argmax(vf))
+            if vf[j] > vis[best]:
+                return Candidate(qf[j], float(vf[j]), float(df[j]), float(bf[j]), bool(inf[j]))
+        if vis[best] > 0.0:
+            return Candidate(q[best], float(vis[best]), float(d[best]), float(b[best]), True)
+    # Nothing reachable sees it: keep the configuration nearest to the current one.
+    j = int(np.argmin(np.abs(q[:, 0] - q0[0]))) if sensor.has_linear else 0
+    return Candidate(q[j], 0.0, float(d[j]), float(b[j]), False)
 
 
 def ideal_pose(

@@ -181,6 +181,8 @@ class DispatchPlanner:
         self._closed: set[int] = set()  # demands whose capture request has gone out
         self._horizon: list[Demand] = []
         self._occluders: dict[int, tuple[Obstacle, ...]] = {}
+        # Best poses found during the current plan (see rank).
+        self._ranked: dict[tuple[str, int, float, bytes, bytes], Candidate] = {}
 
     # -- bookkeeping -------------------------------------------------------------------------
     def serviced(self, index: int) -> None:
@@ -344,7 +346,10 @@ class DispatchPlanner:
         for i, (excluded, _, cid) in enumerate(scored):
             s = self.sensors[cid]
             if i < n_full and not excluded:
-                cand = best_achievable_pose(
+                # One plan ranks a demand's cameras more than once (the first demand, then its
+                # spare cameras): each camera's best pose for it is found once per plan.
+                key = (cid, demand.index, dt, joints[cid].tobytes(), demand.position.tobytes())
+                cand = self._ranked.get(key) or best_achievable_pose(
                     s,
                     joints[cid],
                     demand.target,
@@ -354,6 +359,7 @@ class DispatchPlanner:
                     self.samples,
                     self.occluders(demand),
                 )
+                self._ranked[key] = cand
             else:
                 cand = Candidate(joints[cid], 0.0, math.nan, math.nan, False)
             out.append((cid, cand))
@@ -396,6 +402,7 @@ class DispatchPlanner:
         """
         self._horizon = list(demands)
         self._occluders = {}
+        self._ranked = {}
         cams = [c for c in self.sensors if c in joints and c not in self.excluded]
         horizon = sorted(
             (d for d in demands if d.index not in self._serviced and d.time > now),

@@ -3,8 +3,7 @@
 :class:`~activesurv_launch.launcher.Launcher` (a process per node or per container) and
 :class:`~activesurv_launch.compose.Composition` (every node on one executor in this process)
 both are a :class:`NodeRunner`; an orchestrator starts nodes in groups, checks on them, stops
-them (the last started first, the first started last) and reads what they cost without
-knowing which it has.
+them in reverse order and reads what they cost without knowing which it has.
 """
 
 from __future__ import annotations

@@ -4,8 +4,8 @@ Like a launch file, :func:`graph_specs` lists every node with its parameters; :f
 starts them as processes, the recorder first and the xy table (which owns ``/clock``) last, once
 every node has joined the graph, so simulated time starts only when nothing can miss the object
 entering. A monitor node in this process shows progress (demand j of m, simulated time) and
-ends the run when every demand has an answer or time runs out. The nodes are then stopped: the
-xy table first, the others together, the recorder last.
+ends the run when every demand has an answer or time runs out. The nodes are then stopped in
+reverse order, the recorder last.
 """
 
 from __future__ import annotations

@@ -24,10 +24,12 @@ with ``<member>: error: <reason>`` and exit status 1, as its console script woul
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import rclpy
 import yaml
@@ -120,5 +122,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def exit_now(code: int) -> NoReturn:
+    """Leave the process at once once ``main`` is done: its nodes destroyed, the bag closed,
+    rclpy shut down; the DDS participant is destroyed here (the others hear it leave, its
+    shared memory is released). What is skipped is the interpreter's own teardown of numpy,
+    OpenCV and the node objects: 0.2-0.3 s a container, 2 s of a signalled run's exit."""
+    with contextlib.suppress(Exception):
+        rclpy.utilities.get_default_context().destroy()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())

@@ -105,7 +105,12 @@ def test_a_graph_run_is_served_to_a_foxglove_client(tmp_path: Path) -> None:
     try:
         seen = asyncio.run(_watch(port, time.monotonic() + 90.0))
     finally:
-        stdout, stderr = proc.communicate(timeout=300)
+        try:
+            stdout, stderr = proc.communicate(timeout=300)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # not left running (its nodes die with it: the parent-death signal)
+            proc.communicate()
+            raise
     assert proc.returncode == 0, stdout[-2000:] + stderr[-2000:]
     assert seen['server'] is not None
     assert seen['server']['name'] == 'activesurv'

@@ -346,9 +346,12 @@ def place_cameras(exp: Experiment, origin: float, timeout: float = 20.0) -> Any:
                 if missing
                 else ''
             )
+            when = (
+                f'{-left:.1f} s past it' if left < 0.0 else f'{left:.1f} s before it, 2 s needed'
+            )
             raise NodeDiedError(
-                f'the rig came up too late for run time 0 ({-left:.1f} s past it): the stages or '
-                f'the table did not answer in time{hint}'
+                f'the rig came up too late for run time 0 ({when}): the stages or the table did '
+                f'not answer in time, or this machine is too busy{hint}'
             )
 
     return place

@@ -13,27 +13,18 @@ from activesurv_bringup.experiments.hardware_graph import (
     capture_hold,
     imager_config,
 )
-from activesurv_common.object_geometry import ObjectGeometry
-from activesurv_hardware.hardware_file import TemplateRig, load_hardware, template_text
+from activesurv_bringup.rig.hardware import paper_rig
+from activesurv_hardware.hardware_file import load_hardware, template_text
 
 pytestmark = pytest.mark.cross
 
 
 def _hardware(tmp_path: Path, edit: dict[str, dict[str, object]]) -> object:
-    rig = TemplateRig(
-        'lab',
-        '',
-        (0.0, 0.5),
-        (0.0, 0.2),
-        ObjectGeometry(0.06, (0.0, -0.03, -0.02), (0.0, -1.0, 0.0)),
-        [
-            ('cam1', [('cam1_x', 'linear', 0.0, 0.3), ('cam1_yaw', 'rotary', -1.0, 1.0)]),
-            ('cam2', [('cam2_yaw', 'rotary', -1.0, 1.0)]),
-        ],
-        (0.3, 1.2),
-        (0.5, 2.0),
-    )
-    doc = yaml.safe_load(template_text(rig))
+    """The paper's rig's template hardware file, every camera hardware-triggered but for
+    ``edit`` (fields per camera)."""
+    doc = yaml.safe_load(template_text(paper_rig()))
+    for cam in doc['cameras'].values():  # the rest (the overhead camera too) triggered
+        cam['trigger'] = 'hardware'
     for cam, fields in edit.items():
         doc['cameras'][cam].update(fields)
     path = tmp_path / 'hw.yaml'

@@ -3,8 +3,11 @@
 Publishes: /tf_static (tf2_msgs/TFMessage, latched): ``world -> <cam>_base``,
     ``<cam>_platform -> <cam>_optical_frame`` for every camera of the set-up, and
     ``world -> overhead_optical_frame``; /tf (tf2_msgs/TFMessage): ``<cam>_base ->
-    <cam>_platform`` from each stage state, at its rate and stamp, and ``world -> object`` from
-    each tracked fix (:mod:`activesurv_common.frames`).
+    <cam>_platform`` from each stage state, at its stamp, and ``world -> object`` from
+    each tracked fix (:mod:`activesurv_common.frames`): every transform, gathered into one
+    message every ``publish_period`` (each keeps its own stamp; 0: one message per state, as
+    robot_state_publisher does). One message instead of five wakes each /tf subscriber once:
+    on a host where waking a process costs more than the message, that is most of /tf's CPU.
 Subscribes: <cam>/stage/joint_states (sensor_msgs/JointState), overhead/track
     (geometry_msgs/PointStamped, world).
 Parameters: see ``config/frames.yaml``.
@@ -44,6 +47,13 @@ PARAMS = (
     Param(
         'overhead_pose', Parameter.Type.DOUBLE_ARRAY, 'overhead camera pose', check=_pose_problem
     ),
+    Param(
+        'publish_period',
+        0.1,
+        's between /tf messages (each holds every transform since the last); 0: one per state',
+        minimum=0.0,
+        maximum=10.0,
+    ),
 )
 
 
@@ -61,6 +71,11 @@ class FramesNode(Node):
         edges = frames.static_edges((s.mount for s in self.setup.sensors), overhead)
         static.publish(TFMessage(transforms=[transform_stamped(*e, stamp) for e in edges]))
         self.bad_states = 0
+        self._pending: list[Any] = []  # TransformStamped not yet on /tf
+        period = float(v['publish_period'])
+        self._batched = period > 0.0
+        if self._batched:
+            self.create_timer(period, self._flush)
         for s in self.setup.sensors:
             self.create_subscription(
                 JointState,
@@ -84,13 +99,23 @@ class FramesNode(Node):
                 self.bad_states += 1
                 self.get_logger().warning(f'{camera_id}: bad stage state: {exc}', once=True)
                 return
-            self._tf.publish(TFMessage(transforms=[transform_stamped(*edge, msg.header.stamp)]))
+            self._send(transform_stamped(*edge, msg.header.stamp))
 
         return callback
 
     def _on_track(self, msg: PointStamped) -> None:
         edge = frames.object_edge((msg.point.x, msg.point.y, msg.point.z))
-        self._tf.publish(TFMessage(transforms=[transform_stamped(*edge, msg.header.stamp)]))
+        self._send(transform_stamped(*edge, msg.header.stamp))
+
+    def _send(self, transform: Any) -> None:
+        self._pending.append(transform)
+        if not self._batched:
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._pending:
+            self._tf.publish(TFMessage(transforms=self._pending))
+            self._pending = []
 
 
 def main(args: list[str] | None = None) -> int:

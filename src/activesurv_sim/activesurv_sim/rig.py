@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -112,11 +113,14 @@ class AxisError:
         return float(self.accuracy * np.dot(self._w, np.sin(arg)))
 
 
+@lru_cache(maxsize=256)
 def linear_error(accuracy: float, seed: int) -> AxisError:
-    """A lead-screw axis: 2 mm pitch error and slower run-out over the 300 mm travel."""
+    """A lead-screw axis: 2 mm pitch error and slower run-out over the 300 mm travel (made
+    once per accuracy and seed: the table's state asks for it at every tick)."""
     return AxisError(accuracy, (2e-3, 37e-3, 0.6), seed)
 
 
+@lru_cache(maxsize=256)
 def rotary_error(accuracy: float, seed: int) -> AxisError:
     """A worm-gear rotary axis: once and four times per turn, and per worm tooth (90)."""
     return AxisError(accuracy, (2.0 * math.pi, math.pi / 2.0, 2.0 * math.pi / 90.0), seed)

@@ -42,6 +42,7 @@ STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden
 MIN_VISIBLE = 0.75  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
+WINDOW_STEP = 1.0  # px: edges' windows are rounded up to it (profiles of one length at once)
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
 AREA_MIN_STREAK = 3.0  # px, the streak's length
 ACROSS = 0.15  # |cos| of an edge normal to a streak below which the edge runs along the streak
@@ -218,10 +219,15 @@ def subpixel_edges(
     if config.area_edges:
         # The window holds the longest ramp: a known streak's, or the widest blur found (an
         # unknown motion's streak, a tilted marker's defocus).
-        ramp = (
+        area = config.streak_length >= AREA_MIN_STREAK
+        ramp: float | Array = (
             max(0.5 * config.streak_length + 2.5 * math.sqrt(var), 2.5 * math.sqrt(widest)) + 1.0
         )
-        area = config.streak_length >= AREA_MIN_STREAK
+        if area:
+            # Each edge's own ramp: the streak sweeps along its normal by swept (px), so an
+            # edge across the motion is as short as a still one's; a window as long as the
+            # streak's would sum the noise of pixels that hold nothing of that edge.
+            ramp = 0.5 * swept + 2.5 * math.sqrt(var) + 1.0
         at = boundary + normals * t[:, None]
         dt, keep = _edges_again(image, at, normals, ramp, config, area)
         boundary, normals, t = boundary[keep], normals[keep], t[keep] + dt
@@ -234,7 +240,7 @@ def _edges_again(
     image: NDArray[np.uint8],
     centres: Array,
     normals: Array,
-    ramp: float,
+    ramp: float | Array,
     config: DetectorConfig,
     area: bool,
 ) -> tuple[Array, NDArray[np.bool_]]:
@@ -248,9 +254,33 @@ def _edges_again(
     pulls a first crossing inwards (a dip below the mid level comes earlier than a rise above it
     later) and the area does not move, and it is what the streak's model predicts; on a steep
     edge (or a defocused one: measured) the crossing is the less noisy. Returns each point's
-    offset along its normal (px) and which points held.
+    offset along its normal (px) and which points held. ``ramp`` may differ edge by edge.
     """
-    half = min(ramp, MAX_RAMP) + AREA_MARGIN
+    n = len(centres)
+    if np.ndim(ramp) == 0:
+        halves = np.full(n, min(float(ramp), MAX_RAMP) + AREA_MARGIN)
+    else:  # rounded up to whole steps of WINDOW_STEP px: a few groups, each one array
+        ramps = np.minimum(np.asarray(ramp, dtype=np.float64), MAX_RAMP)
+        halves = np.ceil(ramps / WINDOW_STEP) * WINDOW_STEP + AREA_MARGIN
+    t = np.full(n, np.nan)
+    keep = np.zeros(n, dtype=bool)
+    for half in np.unique(halves):
+        rows = np.nonzero(halves == half)[0]
+        t[rows], keep[rows] = _edges_in_window(
+            image, centres[rows], normals[rows], float(half), config, area
+        )
+    return t[keep], keep
+
+
+def _edges_in_window(
+    image: NDArray[np.uint8],
+    centres: Array,
+    normals: Array,
+    half: float,
+    config: DetectorConfig,
+    area: bool,
+) -> tuple[Array, NDArray[np.bool_]]:
+    """:func:`_edges_again` for profiles of one window (``half`` px either side)."""
     step = 0.25 if half <= 8.0 else 0.5
     steps = np.arange(-half, half + 1e-9, step)
     prof = _profiles(image, centres, normals, steps, config.gamma)
@@ -264,7 +294,7 @@ def _edges_again(
     else:
         t = first_crossing(level, steps, 0.5)
     keep = (span >= _linear_contrast(config)) & (np.abs(t) < half - AREA_MARGIN)
-    return t[keep], keep
+    return t, keep
 
 
 def _profiles(

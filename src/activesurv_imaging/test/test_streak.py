@@ -143,7 +143,7 @@ def test_edges_across_the_motion_are_measured_in_windows_of_their_own() -> None:
     """11-26 px streaks in any direction, the default sensor: every edge of a streaked marker
     measured in its own ramp's window (an edge across the motion is as short as a still one's)
     halves the error of windows as long as the longest ramp (measured over 80 such views: 0.044
-    -> 0.022 mm median, p90 0.126 -> 0.062 mm; the photoreal motion case 0.27 -> 0.08 mm)."""
+    -> 0.022 mm median, p90 0.126 -> 0.062 mm; the photoreal motion case 0.27 -> 0.04 mm)."""
     rng = np.random.default_rng(5)
     renderer = Renderer(CAM)
     marker, normal = np.zeros(3), np.array([0.0, -1.0, 0.0])

@@ -36,7 +36,7 @@ def test_ours_on_the_stored_set_against_plain_opencv(stored: tuple[list, dict]) 
     ours = summary([measure_ours(v) for v in views])
     cv = summary([measure_opencv(v) for v in views])
     # Measured (docs/performance.md): ours 0.06-0.11 mm median in the still, in-focus cases,
-    # 0.07 mm defocused, 0.08 / 0.21 mm (median / p90) under 11-26 px of motion blur (0.27 /
+    # 0.07 mm defocused, 0.04 / 0.21 mm (median / p90) under 11-26 px of motion blur (0.27 /
     # 0.56 mm while every edge of a streaked marker had the longest ramp's window); plain
     # OpenCV about 1 mm (tens of mm under motion blur).
     for case in ('nominal', 'glossy', 'side_light', 'bright_table', 'defocus'):

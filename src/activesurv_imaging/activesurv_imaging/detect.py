@@ -42,6 +42,8 @@ STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden
 MIN_VISIBLE = 0.75  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
+PROFILE_INTERPOLATION = cv2.INTER_LINEAR
+RESAMPLE = True
 WINDOW_STEP = 1.0  # px: edges' windows are rounded up to it (profiles of one length at once)
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
 AREA_MIN_STREAK = 3.0  # px, the streak's length
@@ -229,11 +231,59 @@ def subpixel_edges(
             # streak's would sum the noise of pixels that hold nothing of that edge.
             ramp = 0.5 * swept + 2.5 * math.sqrt(var) + 1.0
         at = boundary + normals * t[:, None]
+        if RESAMPLE:
+            at, normals, kept = _off_the_grid(at, normals)
+            if not np.isscalar(ramp) and kept is not None:
+                ramp = np.asarray(ramp)[kept]
         dt, keep = _edges_again(image, at, normals, ramp, config, area)
-        boundary, normals, t = boundary[keep], normals[keep], t[keep] + dt
+        boundary, normals, t = at[keep], normals[keep], dt
     # The area-equivalent edge of a blurred disc is pulled in as the half-way contour is.
     t += 0.5 * _curvature(coarse, boundary) * var
     return np.asarray(boundary + normals * t[:, None], dtype=np.float64), var
+
+
+def _off_the_grid(at: Array, normals: Array) -> tuple[Array, Array, NDArray[np.intp] | None]:
+    """Where to measure each edge again: on a first fit of the first pass's edges, at evenly
+    spaced angles of it (as many as there are edges), where it has edges (a gap stays a gap).
+
+    The first pass measures one edge per boundary pixel, at the pixel's angle from the centre:
+    so the edges' places across the pixel grid follow the grid, and an interpolated profile's
+    error depends on that place (up to ~0.08 px on a sharp edge). Averaged over the boundary
+    pixels' places it does not cancel: a sharp marker read 0.015 px large (0.07 mm too near at
+    0.55 m). At evenly spaced angles the places fall anywhere across the pixels and it does.
+    Returns the points (on the fit, their offset 0), their outward normals, and for each the
+    index of the first-pass edge nearest in angle (to carry per-edge values); the input as it
+    is (and None) when too few edges or no ellipse fits.
+    """
+    n = len(at)
+    if n < 16:
+        return at, normals, None
+    try:
+        e = fit_ellipse(at, iterations=0)
+    except EllipseFitError:
+        return at, normals, None
+    (a, b), ca, sa = e.semi_axes, math.cos(e.angle), math.sin(e.angle)
+    d = at - e.center
+    psi = np.arctan2((-sa * d[:, 0] + ca * d[:, 1]) / b, (ca * d[:, 0] + sa * d[:, 1]) / a)
+    order = np.argsort(psi)
+    ps = psi[order]
+    grid = -math.pi + (np.arange(n) + 0.5) * (2.0 * math.pi / n)
+    j = np.searchsorted(ps, grid) % n
+    i = (j - 1) % n
+    gap_j = np.abs(np.angle(np.exp(1j * (ps[j] - grid))))
+    gap_i = np.abs(np.angle(np.exp(1j * (grid - ps[i]))))
+    near = np.where(gap_j < gap_i, j, i)
+    # A grid angle between two first-pass edges more than 3 spacings apart lies in a gap.
+    span = np.abs(np.angle(np.exp(1j * (ps[j] - ps[i]))))
+    inside = span <= 3.0 * (2.0 * math.pi / n)
+    g = grid[inside]
+    x, y = a * np.cos(g), b * np.sin(g)
+    pts = np.column_stack([e.center[0] + ca * x - sa * y, e.center[1] + sa * x + ca * y])
+    # Outward normals: the gradient of (x/a)^2 + (y/b)^2 in the ellipse's frame, rotated back.
+    gx, gy = x / (a * a), y / (b * b)
+    nrm = np.column_stack([ca * gx - sa * gy, sa * gx + ca * gy])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    return pts, nrm, order[near[inside]]
 
 
 def _edges_again(
@@ -307,16 +357,16 @@ def _profiles(
     xs = c32[:, 0:1] + n32[:, 0:1] * s32[None, :]
     ys = c32[:, 1:2] + n32[:, 1:2] * s32[None, :]
     h, w = image.shape[:2]
-    x0 = min(max(int(np.floor(xs.min())) - 1, 0), w - 1)
-    y0 = min(max(int(np.floor(ys.min())) - 1, 0), h - 1)
-    x1 = max(min(int(np.ceil(xs.max())) + 2, w), x0 + 1)
-    y1 = max(min(int(np.ceil(ys.max())) + 2, h), y0 + 1)
+    x0 = min(max(int(np.floor(xs.min())) - 2, 0), w - 1)
+    y0 = min(max(int(np.floor(ys.min())) - 2, 0), h - 1)
+    x1 = max(min(int(np.ceil(xs.max())) + 3, w), x0 + 1)
+    y1 = max(min(int(np.ceil(ys.max())) + 3, h), y0 + 1)
     return np.asarray(
         cv2.remap(
             _linear(image[y0:y1, x0:x1], gamma),
             xs - np.float32(x0),
             ys - np.float32(y0),
-            cv2.INTER_LINEAR,
+            PROFILE_INTERPOLATION,
             borderMode=cv2.BORDER_REPLICATE,
         ),
         dtype=np.float64,

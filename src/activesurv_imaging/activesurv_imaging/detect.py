@@ -270,12 +270,12 @@ def _off_the_grid(at: Array, normals: Array) -> tuple[Array, Array, NDArray[np.i
     grid = -math.pi + (np.arange(n) + 0.5) * (2.0 * math.pi / n)
     j = np.searchsorted(ps, grid) % n
     i = (j - 1) % n
-    gap_j = np.abs(np.angle(np.exp(1j * (ps[j] - grid))))
-    gap_i = np.abs(np.angle(np.exp(1j * (grid - ps[i]))))
+    turn = 2.0 * math.pi
+    gap_j = np.mod(ps[j] - grid, turn)  # angles ahead, in [0, 2 pi)
+    gap_i = np.mod(grid - ps[i], turn)
     near = np.where(gap_j < gap_i, j, i)
     # A grid angle between two first-pass edges more than 3 spacings apart lies in a gap.
-    span = np.abs(np.angle(np.exp(1j * (ps[j] - ps[i]))))
-    inside = span <= 3.0 * (2.0 * math.pi / n)
+    inside = gap_i + gap_j <= 3.0 * (turn / n)
     g = grid[inside]
     x, y = a * np.cos(g), b * np.sin(g)
     pts = np.column_stack([e.center[0] + ca * x - sa * y, e.center[1] + sa * x + ca * y])

@@ -42,8 +42,9 @@ STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden
 MIN_VISIBLE = 0.75  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
+# Profiles are sampled bilinearly: bicubic, tried with the edges off the grid, read the
+# physically based set worse (0.048 / 0.19 mm against 0.043 / 0.13) and costs more.
 PROFILE_INTERPOLATION = cv2.INTER_LINEAR
-RESAMPLE = True
 WINDOW_STEP = 1.0  # px: edges' windows are rounded up to it (profiles of one length at once)
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
 AREA_MIN_STREAK = 3.0  # px, the streak's length
@@ -230,11 +231,9 @@ def subpixel_edges(
             # edge across the motion is as short as a still one's; a window as long as the
             # streak's would sum the noise of pixels that hold nothing of that edge.
             ramp = 0.5 * swept + 2.5 * math.sqrt(var) + 1.0
-        at = boundary + normals * t[:, None]
-        if RESAMPLE:
-            at, normals, kept = _off_the_grid(at, normals)
-            if not np.isscalar(ramp) and kept is not None:
-                ramp = np.asarray(ramp)[kept]
+        at, normals, kept = _off_the_grid(boundary + normals * t[:, None], normals)
+        if kept is not None and not np.isscalar(ramp):
+            ramp = np.asarray(ramp)[kept]
         dt, keep = _edges_again(image, at, normals, ramp, config, area)
         boundary, normals, t = at[keep], normals[keep], dt
     # The area-equivalent edge of a blurred disc is pulled in as the half-way contour is.

@@ -166,3 +166,39 @@ def test_no_process_outlives_a_sigkilled_run(tmp_path: Path) -> None:
         time.sleep(0.1)
     assert _processes_mentioning(str(out)) == []
     assert (out / 'bag' / 'metadata.yaml').is_file()
+
+
+HANGING_TEARDOWN = """
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+import activesurv_common.ros.node as node
+node.STOP_BOUND = 1.0
+rclpy.init()
+print('ready', flush=True)
+node.spin_until_signal(SingleThreadedExecutor())
+while True:  # a teardown that never ends (rclpy's destroy_node once did, holding the GIL)
+    pass
+"""
+
+
+def test_a_node_whose_teardown_hangs_is_ended_by_the_alarm() -> None:
+    """A node our launcher started (its parent's pid in the environment) that is asked to stop
+    and then hangs is ended by the kernel's alarm (``STOP_BOUND``, 1 s here; 8 s in a run,
+    beyond the launcher's own SIGKILL at 7 s), not left running: what a SIGKILLed run's
+    container once did when the parent-death signal came while its parent still looked alive."""
+    env = {**os.environ, 'ACTIVESURV_PARENT_PID': str(os.getpid())}
+    proc = subprocess.Popen(
+        [sys.executable, '-c', HANGING_TEARDOWN], env=env, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == 'ready'
+        time.sleep(0.3)
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(10)
+        assert code == -signal.SIGALRM
+        assert time.monotonic() - t0 < 5.0
+    finally:
+        proc.kill()
+        proc.wait(5)

@@ -73,6 +73,11 @@ ORPHAN_GRACE = 3.0
 """s a node whose orchestrator is gone has to stop (its on-stop work included) before the
 kernel ends it: nobody else is left to escalate."""
 
+STOP_BOUND = 8.0
+"""s a node started by our launcher may take to stop once asked while its orchestrator lives:
+beyond the launcher's own escalation (SIGINT, 5 s, SIGTERM, 2 s, SIGKILL), so it never cuts a
+stop short; it ends a node whose teardown hangs after its orchestrator died unseen."""
+
 
 def spin_until_signal(executor: Executor) -> None:
     """Spin until SIGINT, SIGTERM, SIGHUP, an external shutdown of the context, or the death
@@ -100,11 +105,23 @@ def spin_until_signal(executor: Executor) -> None:
                 _arm_orphan_alarm()
     except ExternalShutdownException:
         pass
+    if watched:
+        # Bound the teardown that follows in every case: it can hang (a clean clone once saw
+        # an orphaned container spin in rclpy's destroy_node for minutes, holding the GIL, so
+        # no Python handler or thread could act), and the parent-death signal can come while
+        # the parent still looks alive (the kernel sends it when the thread that started this
+        # process exits, before the rest of the parent's threads), so the handler's own look
+        # may have missed the orphaning. The kernel's alarm ends the process either way.
+        _arm_alarm(ORPHAN_GRACE if orphaned() else STOP_BOUND)
 
 
 def _arm_orphan_alarm() -> None:
+    _arm_alarm(ORPHAN_GRACE)
+
+
+def _arm_alarm(seconds: float) -> None:
     signal.signal(signal.SIGALRM, signal.SIG_DFL)  # the default action ends the process
-    signal.alarm(max(1, round(ORPHAN_GRACE)))
+    signal.alarm(max(1, round(seconds)))
 
 
 def run_node(

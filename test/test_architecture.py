@@ -182,6 +182,7 @@ ROSDEP = {
     'scipy': 'python3-scipy',
     'matplotlib': 'python3-matplotlib',
     'serial': 'python3-serial',
+    'numba': 'python3-numba',
 }
 # rclpy's own packages come with it; pip-only libraries live in requirements.txt.
 IMPLIED = {'rclpy', 'ament_index_python'}

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse, sampson_distances
 from activesurv_imaging.errors import EllipseFitError, ImagingError
+from activesurv_imaging.kernels import first_pass, otsu, window_pass
 
 Array = NDArray[np.float64]
 Fitter = Callable[[Array], Ellipse]
@@ -42,9 +43,10 @@ STRETCHES = 36  # starts of the outline stretches whose ellipses a partly hidden
 MIN_VISIBLE = 0.75  # of its boundary a partly hidden marker must show to be measured
 AREA_MARGIN = 4.0  # px of each area-edge profile beyond the ramp: the two levels come from it
 MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
-# Profiles are sampled bilinearly: bicubic, tried with the edges off the grid, read the
-# physically based set worse (0.048 / 0.19 mm against 0.043 / 0.13) and costs more.
-PROFILE_INTERPOLATION = cv2.INTER_LINEAR
+# Profiles are sampled bilinearly (:mod:`activesurv_imaging.kernels`): bicubic, tried with
+# the edges off the grid, read the physically based set worse (0.048 / 0.19 mm against 0.043 /
+# 0.13) and costs more.
+FIRST_PASS_STRIDE = 2  # the first pass measures every other boundary pixel
 WINDOW_STEP = 1.0  # px: edges' windows are rounded up to it (profiles of one length at once)
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
 AREA_MIN_STREAK = 3.0  # px, the streak's length
@@ -190,23 +192,14 @@ def subpixel_edges(
     if config.streak_length > 0.0:  # the streak's ramp and a margin either side of it
         half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
     step = 0.25 if half <= 6.0 else 0.5
-    steps = np.arange(-half, half + 1e-9, step)
-    prof = _profiles(image, boundary, normals, steps, config.gamma)
-    quarter = max(len(steps) // 4, 1)
-    bright = _medians(prof[:, :quarter])  # inside the marker
-    dark = _medians(prof[:, -quarter:])  # on the plate
-    contrast = bright - dark
-    mid = 0.5 * (bright + dark)
-    below = prof < mid[:, None]
-    # First sample (from inside out) below the mid level: search from the inside outwards.
-    first = np.argmax(below, axis=1)
-    ok = (contrast >= _linear_contrast(config)) & below.any(axis=1) & (first > 0)
-    idx = np.nonzero(ok)[0]
-    f = first[idx]
-    v0 = prof[idx, f - 1]
-    v1 = prof[idx, f]
-    frac = (v0 - mid[idx]) / np.maximum(v0 - v1, 1e-9)
-    t = steps[f - 1] + step * np.clip(frac, 0.0, 1.0)
+    # Measured again off the grid, the edges need the first pass only for a first fit, the
+    # blur and the gaps: every other boundary pixel tells them as well.
+    stride = FIRST_PASS_STRIDE if config.area_edges and len(boundary) >= 64 else 1
+    boundary, normals = boundary[::stride], normals[::stride]
+    lut = _response_lut(config.gamma)
+    t_all, sig2 = first_pass(image, lut, boundary, normals, half, step, _linear_contrast(config))
+    idx = np.nonzero(np.isfinite(t_all))[0]
+    t = t_all[idx]
     # A disc blurred by an isotropic blur of variance s2 (defocus, the pixel) has its half-way
     # contour inside the disc by curvature x s2 / 2. Motion blur adds variance along its
     # direction only, and moves no half-way point along it: the isotropic part is the least
@@ -217,7 +210,7 @@ def subpixel_edges(
     swept = config.streak_length * np.abs(
         normals[idx] @ np.array([math.cos(config.streak_angle), math.sin(config.streak_angle)])
     )
-    var, widest = _blur_variance(prof[idx], steps, bright[idx], dark[idx], swept)
+    var, widest = _blur_variance(sig2[idx], swept)
     boundary, normals = boundary[idx], normals[idx]
     if config.area_edges:
         # The window holds the longest ramp: a known streak's, or the widest blur found (an
@@ -231,7 +224,7 @@ def subpixel_edges(
             # edge across the motion is as short as a still one's; a window as long as the
             # streak's would sum the noise of pixels that hold nothing of that edge.
             ramp = 0.5 * swept + 2.5 * math.sqrt(var) + 1.0
-        at, normals, kept = _off_the_grid(boundary + normals * t[:, None], normals)
+        at, normals, kept = _off_the_grid(boundary + normals * t[:, None], normals, stride)
         if kept is not None and not np.isscalar(ramp):
             ramp = np.asarray(ramp)[kept]
         dt, keep = _edges_again(image, at, normals, ramp, config, area)
@@ -241,9 +234,11 @@ def subpixel_edges(
     return np.asarray(boundary + normals * t[:, None], dtype=np.float64), var
 
 
-def _off_the_grid(at: Array, normals: Array) -> tuple[Array, Array, NDArray[np.intp] | None]:
+def _off_the_grid(
+    at: Array, normals: Array, per_edge: int = 1
+) -> tuple[Array, Array, NDArray[np.intp] | None]:
     """Where to measure each edge again: on a first fit of the first pass's edges, at evenly
-    spaced angles of it (as many as there are edges), where it has edges (a gap stays a gap).
+    spaced angles of it (``per_edge`` for each edge), where it has edges (a gap stays a gap).
 
     The first pass measures one edge per boundary pixel, at the pixel's angle from the centre:
     so the edges' places across the pixel grid follow the grid, and an interpolated profile's
@@ -266,14 +261,16 @@ def _off_the_grid(at: Array, normals: Array) -> tuple[Array, Array, NDArray[np.i
     psi = np.arctan2((-sa * d[:, 0] + ca * d[:, 1]) / b, (ca * d[:, 0] + sa * d[:, 1]) / a)
     order = np.argsort(psi)
     ps = psi[order]
-    grid = -math.pi + (np.arange(n) + 0.5) * (2.0 * math.pi / n)
+    m = n * per_edge
+    grid = -math.pi + (np.arange(m) + 0.5) * (2.0 * math.pi / m)
     j = np.searchsorted(ps, grid) % n
     i = (j - 1) % n
     turn = 2.0 * math.pi
     gap_j = np.mod(ps[j] - grid, turn)  # angles ahead, in [0, 2 pi)
     gap_i = np.mod(grid - ps[i], turn)
     near = np.where(gap_j < gap_i, j, i)
-    # A grid angle between two first-pass edges more than 3 spacings apart lies in a gap.
+    # A grid angle between two first-pass edges more than 3 of their spacings apart lies in a
+    # gap.
     inside = gap_i + gap_j <= 3.0 * (turn / n)
     g = grid[inside]
     x, y = a * np.cos(g), b * np.sin(g)
@@ -311,82 +308,29 @@ def _edges_again(
     else:  # rounded up to whole steps of WINDOW_STEP px: a few groups, each one array
         ramps = np.minimum(np.asarray(ramp, dtype=np.float64), MAX_RAMP)
         halves = np.ceil(ramps / WINDOW_STEP) * WINDOW_STEP + AREA_MARGIN
-    t = np.full(n, np.nan)
-    keep = np.zeros(n, dtype=bool)
-    for half in np.unique(halves):
-        rows = np.nonzero(halves == half)[0]
-        t[rows], keep[rows] = _edges_in_window(
-            image, centres[rows], normals[rows], float(half), config, area
-        )
+    t, keep = window_pass(
+        image,
+        _response_lut(config.gamma),
+        centres,
+        normals,
+        halves,
+        AREA_MARGIN,
+        area,
+        _linear_contrast(config),
+    )
     return t[keep], keep
 
 
-def _edges_in_window(
-    image: NDArray[np.uint8],
-    centres: Array,
-    normals: Array,
-    half: float,
-    config: DetectorConfig,
-    area: bool,
-) -> tuple[Array, NDArray[np.bool_]]:
-    """:func:`_edges_again` for profiles of one window (``half`` px either side)."""
-    step = 0.25 if half <= 8.0 else 0.5
-    steps = np.arange(-half, half + 1e-9, step)
-    prof = _profiles(image, centres, normals, steps, config.gamma)
-    outer = np.abs(steps) > half - AREA_MARGIN
-    bright = _medians(prof[:, outer & (steps < 0)])
-    dark = _medians(prof[:, outer & (steps > 0)])
-    span = bright - dark
-    level = (prof - dark[:, None]) / np.maximum(span, 1e-9)[:, None]
-    if area:  # the integral of the level over the window: its length inside the marker
-        t = step * (level.sum(axis=1) - 0.5 * (level[:, 0] + level[:, -1])) - half
-    else:
-        t = first_crossing(level, steps, 0.5)
-    keep = (span >= _linear_contrast(config)) & (np.abs(t) < half - AREA_MARGIN)
-    return t, keep
-
-
-def _profiles(
-    image: NDArray[np.uint8], centres: Array, normals: Array, steps: Array, gamma: float
-) -> Array:
-    """Grey-level profiles (linear radiance) along ``normals`` through ``centres`` at
-    ``steps`` px; only the pixels they touch are linearised."""
-    c32, n32 = centres.astype(np.float32), normals.astype(np.float32)
-    s32 = steps.astype(np.float32)
-    xs = c32[:, 0:1] + n32[:, 0:1] * s32[None, :]
-    ys = c32[:, 1:2] + n32[:, 1:2] * s32[None, :]
-    h, w = image.shape[:2]
-    x0 = min(max(int(np.floor(xs.min())) - 2, 0), w - 1)
-    y0 = min(max(int(np.floor(ys.min())) - 2, 0), h - 1)
-    x1 = max(min(int(np.ceil(xs.max())) + 3, w), x0 + 1)
-    y1 = max(min(int(np.ceil(ys.max())) + 3, h), y0 + 1)
-    return np.asarray(
-        cv2.remap(
-            _linear(image[y0:y1, x0:x1], gamma),
-            xs - np.float32(x0),
-            ys - np.float32(y0),
-            PROFILE_INTERPOLATION,
-            borderMode=cv2.BORDER_REPLICATE,
-        ),
-        dtype=np.float64,
-    )
-
-
-def _blur_variance(
-    prof: Array, steps: Array, bright: Array, dark: Array, swept: Array | None = None
-) -> tuple[float, float]:
+def _blur_variance(raw: Array, swept: Array | None = None) -> tuple[float, float]:
     """The marker's isotropic blur variance across its edge (px^2). Each profile's blur comes
     from where it crosses 75 % and 25 % of the way from the marker's level to the plate's (for
     a Gaussian blur of sigma they lie 1.349 sigma apart; unlike the slope's moments they do not
-    see the noise of the flat parts), less the known streak's share (``swept``: px of the
-    streak along each profile; a uniform ramp of that length crosses them half of it apart);
-    the medians of 16 arcs of the boundary (it comes in contour order) smooth the noise, and
-    the least of them is the isotropic part (motion blur adds to some directions only). Also
-    the greatest of them, the streak's share kept: the widest ramp around the marker."""
-    span = np.maximum(bright - dark, 1e-9)[:, None]
-    level = (prof - dark[:, None]) / span
-    sigma = (first_crossing(level, steps, 0.25) - first_crossing(level, steps, 0.75)) / 1.349
-    raw = sigma * sigma
+    see the noise of the flat parts): ``raw``, its square per edge (NaN where a crossing is
+    missing), less the known streak's share (``swept``: px of the streak along each profile; a
+    uniform ramp of that length crosses them half of it apart); the medians of 16 arcs of the
+    boundary (it comes in contour order) smooth the noise, and the least of them is the
+    isotropic part (motion blur adds to some directions only). Also the greatest of them, the
+    streak's share kept: the widest ramp around the marker."""
     share = np.zeros_like(raw) if swept is None else (0.5 * swept / 1.349) ** 2
     arcs = 16 if len(raw) >= 64 else 1
     usable = len(raw) // arcs * arcs
@@ -406,17 +350,6 @@ def _blur_variance(
         max(float(iso.min()), 0.0) if len(iso) else 0.0,
         max(float(wide.max()), 0.0) if len(wide) else 0.0,
     )
-
-
-def _medians(rows: Array) -> Array:
-    """Each row's median, the rows finite (profiles): ``np.median``'s partition without its
-    NaN checks and reduction machinery (they cost as much again as the partition)."""
-    n = rows.shape[1]
-    k = n // 2
-    if n % 2:
-        return np.asarray(np.partition(rows, k, axis=1)[:, k], dtype=np.float64)
-    part = np.partition(rows, (k - 1, k), axis=1)
-    return np.asarray(0.5 * (part[:, k - 1] + part[:, k]), dtype=np.float64)
 
 
 def _row_medians(rows: Array) -> Array:
@@ -456,17 +389,10 @@ def _curvature(ell: Ellipse, pts: Array) -> Array:
     )
 
 
-def _linear(image: NDArray[np.uint8], gamma: float) -> NDArray[np.float32]:
-    """Grey levels in linear radiance (0-255 full scale): the camera's response undone."""
-    if gamma == 1.0:
-        return image.astype(np.float32)
-    return np.asarray(cv2.LUT(image, _response_lut(gamma)), dtype=np.float32)
-
-
 @functools.lru_cache(maxsize=16)
-def _response_lut(gamma: float) -> NDArray[np.float32]:
+def _response_lut(gamma: float) -> Array:
     """Linear radiance of each grey level under ``gamma`` (a camera has one: made once)."""
-    return (255.0 * (np.arange(256, dtype=np.float64) / 255.0) ** gamma).astype(np.float32)
+    return np.asarray(255.0 * (np.arange(256, dtype=np.float64) / 255.0) ** gamma)
 
 
 def _linear_contrast(config: DetectorConfig) -> float:
@@ -557,43 +483,48 @@ def detect_markers(
     return [_fit_blob(img, blob, cfg, fitter, candidates) for blob in accepted]
 
 
-def _levels(img: NDArray[np.uint8]) -> tuple[int, int]:
-    """The frame's 1 % and 99.9 % grey levels (from OpenCV's 256-bin histogram: a full-frame
-    sort costs milliseconds, numpy's bincount one)."""
-    hist = cv2.calcHist([img], [0], None, [256], [0, 256]).ravel()
+def _levels(img: NDArray[np.uint8]) -> tuple[int, int, int]:
+    """The frame's 1 % and 99.9 % grey levels and its Otsu threshold, from one 256-bin
+    histogram (OpenCV's: a full-frame sort costs milliseconds, numpy's bincount one)."""
+    hist = cv2.calcHist([img], [0], None, [256], [0, 256]).ravel().astype(np.float64)
     cdf = np.cumsum(hist) / img.size
-    return int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
+    lo, hi = int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
+    return lo, hi, otsu(hist)
 
 
-def _for_frame(levels: tuple[int, int], cfg: DetectorConfig) -> DetectorConfig:
+def _for_frame(levels: tuple[int, int, int], cfg: DetectorConfig) -> DetectorConfig:
     """The limits for this frame (its 1 % and 99.9 % grey ``levels``): an edge's contrast
     threshold follows a dim frame's own contrast (unchanged in a well-exposed one)."""
-    lo, hi = levels
+    lo, hi, _ = levels
     edge = min(cfg.min_contrast, 0.5 * (hi - lo))
     return cfg if edge == cfg.min_contrast else replace(cfg, min_contrast=edge)
 
 
-def _bright(img: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """The frame's bright regions: Otsu's threshold, its noise specks opened away (they
-    became hundreds of contours: a noisy frame's contour search took 4 ms)."""
-    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+def _bright(img: NDArray[np.uint8], otsu_level: int | None = None) -> NDArray[np.uint8]:
+    """The frame's bright regions: Otsu's threshold (``otsu_level`` when known), its noise
+    specks opened away (they became hundreds of contours: a noisy frame's contour search
+    took 4 ms)."""
+    if otsu_level is None:
+        _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    else:
+        _, binary = cv2.threshold(img, otsu_level, 255, cv2.THRESH_BINARY)
     return np.asarray(cv2.morphologyEx(binary, cv2.MORPH_OPEN, _SPECK), dtype=np.uint8)
 
 
 def _marker_blobs(
-    img: NDArray[np.uint8], cfg: DetectorConfig, levels: tuple[int, int]
+    img: NDArray[np.uint8], cfg: DetectorConfig, levels: tuple[int, int, int]
 ) -> Detection | tuple[list[tuple[NDArray[Any], Ellipse]], list[str], int]:
     """The bright blobs that pass as markers, the reasons the others did not, and how many
     there were; or a Detection saying why there can be none (``levels``: the frame's 1 % and
-    99.9 % grey levels)."""
-    lo, hi = levels
+    99.9 % grey levels and its Otsu threshold)."""
+    lo, hi, otsu_level = levels
     if hi - lo < cfg.min_frame_contrast:
         return Detection(
             DetectionStatus.NOT_FOUND,
             f'no contrast in the image (grey levels {lo:.0f}..{hi:.0f}): '
             'black, saturated or blank frame',
         )
-    binary = _bright(img)
+    binary = _bright(img, otsu_level)
     contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hierarchy is None:
         return Detection(DetectionStatus.NOT_FOUND, 'no bright region in the image')

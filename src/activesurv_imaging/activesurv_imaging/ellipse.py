@@ -29,6 +29,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_imaging.errors import EllipseFitError
+from activesurv_imaging.kernels import (
+    arc_weights,
+    direct_fit,
+    ellipse_parameters,
+    sampson,
+    sampson_weights,
+    scatter,
+)
 
 Array = NDArray[np.float64]
 
@@ -97,30 +105,34 @@ def ellipse_from_conic(conic: ArrayLike) -> Ellipse:
     disc = 4.0 * A * C - B * B
     if disc <= 0.0:
         raise EllipseFitError(f'conic is not an ellipse (4ac - b^2 = {disc:.3g} <= 0)')
-    M = np.array([[2.0 * A, B], [B, 2.0 * C]])
-    center = np.linalg.solve(M, [-D, -E])
-    f0 = F + 0.5 * (D * center[0] + E * center[1])  # Q at the centre
-    mu, vecs = np.linalg.eigh(np.array([[A, B / 2.0], [B / 2.0, C]]))
-    if f0 == 0.0 or np.any(-f0 / mu <= 0.0):
+    cx, cy, a, b, angle = ellipse_parameters(A, B, C, D, E, F)
+    if not math.isfinite(cx):
         raise EllipseFitError('conic is an imaginary or degenerate ellipse')
-    r2 = -f0 / mu  # squared semi-axis along each eigenvector
-    i_major = int(np.argmax(r2))
-    major = vecs[:, i_major]
-    angle = math.atan2(major[1], major[0]) % math.pi
-    a, b = math.sqrt(r2[i_major]), math.sqrt(r2[1 - i_major])
-    return Ellipse(np.asarray(center, dtype=np.float64), (a, b), angle)
+    return Ellipse(np.array([cx, cy]), (float(a), float(b)), float(angle))
 
 
 CONVERGED = 1e-7  # change of the unit-norm conic at which re-weighting stops
 
 
 def _direct_fit(x: Array, y: Array, w: Array) -> Array:
-    """Weighted constrained fit (Halir-Flusser); returns the conic in the given coordinates."""
-    D1 = np.column_stack([x * x, x * y, y * y]) * w[:, None]
-    D2 = np.column_stack([x, y, np.ones_like(x)]) * w[:, None]
-    S1 = D1.T @ D1
-    S2 = D1.T @ D2
-    S3 = D2.T @ D2
+    """Weighted constrained fit (Halir-Flusser); returns the conic in the given coordinates
+    (compiled: :func:`activesurv_imaging.kernels.direct_fit`; numpy's complex ``eig`` when
+    the reduced problem's eigenvalues are not all real)."""
+    try:
+        conic = direct_fit(x, y, w)
+    except np.linalg.LinAlgError as exc:
+        raise EllipseFitError('points are degenerate (collinear or too few)') from exc
+    except ValueError:
+        return _direct_fit_numpy(x, y, w)
+    if not np.all(np.isfinite(conic)):
+        raise EllipseFitError('no ellipse fits these points')
+    return conic
+
+
+def _direct_fit_numpy(x: Array, y: Array, w: Array) -> Array:
+    """:func:`_direct_fit` in numpy, complex eigenvalues and all."""
+    S = scatter(x, y, w)
+    S1, S2, S3 = S[:3, :3], S[:3, 3:], S[3:, 3:]
     try:
         T = -np.linalg.solve(S3, S2.T)
     except np.linalg.LinAlgError as exc:
@@ -156,27 +168,15 @@ def _denormalise(conic: Array, mx: float, my: float, s: float) -> Array:
 
 def _arc_weights(u: Array, v: Array, ell: Ellipse) -> Array:
     """Arc length represented by each point: half the gap to its neighbours around the ellipse."""
-    ca, sa = math.cos(ell.angle), math.sin(ell.angle)
-    du, dv = u - ell.center[0], v - ell.center[1]
-    xr = (ca * du + sa * dv) / ell.semi_axes[0]
-    yr = (-sa * du + ca * dv) / ell.semi_axes[1]
-    order = np.argsort(np.arctan2(yr, xr))
-    pu, pv = u[order], v[order]
-    gap = np.hypot(np.roll(pu, -1) - pu, np.roll(pv, -1) - pv)
-    s = np.empty_like(u)
-    s[order] = 0.5 * (gap + np.roll(gap, 1))
-    return np.maximum(s, 1e-6 * max(float(np.median(s)), 1e-12))
+    (a, b), (cx, cy) = ell.semi_axes, ell.center
+    return arc_weights(u, v, float(cx), float(cy), a, b, ell.angle)
 
 
 def sampson_distances(conic: ArrayLike, points: ArrayLike) -> Array:
     """First-order geometric distance ``|Q| / |grad Q|`` of each point to the conic (pixels)."""
-    A, B, C, D, E, F = np.asarray(conic, dtype=np.float64).reshape(6)
-    p = np.asarray(points, dtype=np.float64)
-    x, y = p[:, 0], p[:, 1]
-    q = A * x * x + B * x * y + C * y * y + D * x + E * y + F
-    gx = 2 * A * x + B * y + D
-    gy = B * x + 2 * C * y + E
-    return np.asarray(np.abs(q) / np.maximum(np.hypot(gx, gy), 1e-300), dtype=np.float64)
+    c = np.ascontiguousarray(conic, dtype=np.float64).reshape(6)
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    return sampson(c, p)
 
 
 def fit_ellipse(
@@ -224,10 +224,7 @@ def fit_ellipse(
         # not change with the small corrections of the re-weighting (only |grad Q| does).
         arc = np.sqrt(_arc_weights(u, v, ellipse_from_conic(conic_n))) if iterations else u
         for _ in range(iterations):
-            A, B, C, D, E, _F = conic_n
-            grad = np.hypot(2 * A * u + B * v + D, B * u + 2 * C * v + E)
-            w = arc / np.maximum(grad, 1e-12)
-            new = _direct_fit(u, v, w / w.max())
+            new = _direct_fit(u, v, sampson_weights(u, v, arc, conic_n))
             new *= np.sign(new @ conic_n) / np.linalg.norm(new)
             # Converged when the unit conic moves less than 1e-7 (the centre by ~1e-6 px).
             done = np.linalg.norm(new - conic_n / np.linalg.norm(conic_n)) < CONVERGED

@@ -33,7 +33,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse, sampson_distances
 from activesurv_imaging.errors import EllipseFitError, ImagingError
-from activesurv_imaging.kernels import first_pass, otsu, window_pass
+from activesurv_imaging.kernels import (
+    evenly_spaced,
+    first_pass,
+    otsu,
+    outward_normals,
+    window_pass,
+)
 
 Array = NDArray[np.float64]
 Fitter = Callable[[Array], Ellipse]
@@ -160,14 +166,8 @@ def _coarse(contour: NDArray[Any]) -> Ellipse | None:
 
 
 def _outward_normals(ell: Ellipse, pts: Array) -> Array:
-    A, B, C, D, E, _ = ell.conic()
-    x, y = pts[:, 0], pts[:, 1]
-    g = np.column_stack([2 * A * x + B * y + D, B * x + 2 * C * y + E])
-    g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
-    # Make them point away from the centre (the conic's sign is arbitrary).
-    flip = np.sum(g * (pts - ell.center), axis=1) < 0
-    g[flip] *= -1
-    return g
+    cx, cy = ell.center
+    return outward_normals(ell.conic(), float(cx), float(cy), np.ascontiguousarray(pts))
 
 
 def subpixel_edges(
@@ -256,30 +256,9 @@ def _off_the_grid(
         e = fit_ellipse(at, iterations=0)
     except EllipseFitError:
         return at, normals, None
-    (a, b), ca, sa = e.semi_axes, math.cos(e.angle), math.sin(e.angle)
-    d = at - e.center
-    psi = np.arctan2((-sa * d[:, 0] + ca * d[:, 1]) / b, (ca * d[:, 0] + sa * d[:, 1]) / a)
-    order = np.argsort(psi)
-    ps = psi[order]
-    m = n * per_edge
-    grid = -math.pi + (np.arange(m) + 0.5) * (2.0 * math.pi / m)
-    j = np.searchsorted(ps, grid) % n
-    i = (j - 1) % n
-    turn = 2.0 * math.pi
-    gap_j = np.mod(ps[j] - grid, turn)  # angles ahead, in [0, 2 pi)
-    gap_i = np.mod(grid - ps[i], turn)
-    near = np.where(gap_j < gap_i, j, i)
-    # A grid angle between two first-pass edges more than 3 of their spacings apart lies in a
-    # gap.
-    inside = gap_i + gap_j <= 3.0 * (turn / n)
-    g = grid[inside]
-    x, y = a * np.cos(g), b * np.sin(g)
-    pts = np.column_stack([e.center[0] + ca * x - sa * y, e.center[1] + sa * x + ca * y])
-    # Outward normals: the gradient of (x/a)^2 + (y/b)^2 in the ellipse's frame, rotated back.
-    gx, gy = x / (a * a), y / (b * b)
-    nrm = np.column_stack([ca * gx - sa * gy, sa * gx + ca * gy])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-    return pts, nrm, order[near[inside]]
+    (a, b), (cx, cy) = e.semi_axes, e.center
+    pts, nrm, near = evenly_spaced(at, float(cx), float(cy), a, b, e.angle, n * per_edge)
+    return pts, nrm, near
 
 
 def _edges_again(
@@ -533,9 +512,12 @@ def _marker_blobs(
     accepted: list[tuple[NDArray[Any], Ellipse]] = []
     reasons: list[str] = []
     candidates = 0
+    # A contour of fewer points cannot enclose min_area (its steps are at most sqrt(2) px, and
+    # no outline shorter than a circle's encloses as much): noise specks, skipped unmeasured.
+    min_points = math.sqrt(4.0 * math.pi * min_area) / math.sqrt(2.0)
     for contour, hier in zip(contours, hierarchy[0], strict=True):
-        if hier[3] != -1:
-            continue  # a hole, not the outer boundary of a bright blob
+        if hier[3] != -1 or len(contour) < min_points:
+            continue  # a hole, not the outer boundary of a bright blob; or a speck
         area = cv2.contourArea(contour)
         if area < min_area:
             continue  # speck of noise

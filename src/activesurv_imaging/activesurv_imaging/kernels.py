@@ -367,3 +367,66 @@ def sampson(conic: Array, points: Array) -> Array:
         gy = B * x + 2.0 * C * y + E
         out[i] = abs(q) / max(math.sqrt(gx * gx + gy * gy), 1e-300)
     return out
+
+
+@_compiled
+def outward_normals(conic: Array, cx: float, cy: float, points: Array) -> Array:
+    """The conic's unit gradient at each point, turned to point away from (cx, cy)."""
+    A, B, C, D, E = conic[0], conic[1], conic[2], conic[3], conic[4]
+    n = points.shape[0]
+    out = np.empty((n, 2))
+    for i in range(n):
+        x, y = points[i, 0], points[i, 1]
+        gx = 2.0 * A * x + B * y + D
+        gy = B * x + 2.0 * C * y + E
+        norm = max(math.sqrt(gx * gx + gy * gy), 1e-12)
+        gx, gy = gx / norm, gy / norm
+        if gx * (x - cx) + gy * (y - cy) < 0.0:
+            gx, gy = -gx, -gy
+        out[i, 0], out[i, 1] = gx, gy
+    return out
+
+
+@_compiled
+def evenly_spaced(
+    at: Array, cx: float, cy: float, a: float, b: float, angle: float, count: int
+) -> tuple[Array, Array, NDArray[np.intp]]:
+    """``count`` points at evenly spaced parametric angles of the ellipse, those within 3 of
+    ``at``'s mean spacings of a point of ``at`` (a gap in ``at`` stays a gap): the points,
+    their outward normals and for each the index of the point of ``at`` nearest in angle
+    (:func:`activesurv_imaging.detect._off_the_grid`)."""
+    ca, sa = math.cos(angle), math.sin(angle)
+    n = at.shape[0]
+    psi = np.empty(n)
+    for i in range(n):
+        dx, dy = at[i, 0] - cx, at[i, 1] - cy
+        psi[i] = math.atan2((-sa * dx + ca * dy) / b, (ca * dx + sa * dy) / a)
+    order = np.argsort(psi)
+    ps = psi[order]
+    turn = 2.0 * math.pi
+    limit = 3.0 * (turn / n)
+    pts = np.empty((count, 2))
+    nrm = np.empty((count, 2))
+    near = np.empty(count, dtype=np.intp)
+    kept = 0
+    j = 0  # the first of ps at or beyond the grid angle (the grid and ps both ascend)
+    for k in range(count):
+        g = -math.pi + (k + 0.5) * (turn / count)
+        while j < n and ps[j] < g:
+            j += 1
+        jj = j % n
+        ii = (jj - 1) % n
+        gap_j = (ps[jj] - g) % turn
+        gap_i = (g - ps[ii]) % turn
+        if gap_i + gap_j > limit:
+            continue
+        near[kept] = order[jj] if gap_j < gap_i else order[ii]
+        x, y = a * math.cos(g), b * math.sin(g)
+        pts[kept, 0] = cx + ca * x - sa * y
+        pts[kept, 1] = cy + sa * x + ca * y
+        gx, gy = x / (a * a), y / (b * b)
+        ux, uy = ca * gx - sa * gy, sa * gx + ca * gy
+        norm = max(math.sqrt(ux * ux + uy * uy), 1e-12)
+        nrm[kept, 0], nrm[kept, 1] = ux / norm, uy / norm
+        kept += 1
+    return pts[:kept], nrm[:kept], near[:kept]

@@ -34,10 +34,12 @@ from numpy.typing import ArrayLike, NDArray
 from activesurv_imaging.ellipse import Ellipse, fit_ellipse, sampson_distances
 from activesurv_imaging.errors import EllipseFitError, ImagingError
 from activesurv_imaging.kernels import (
+    curvature,
     evenly_spaced,
     first_pass,
     otsu,
     outward_normals,
+    row_medians,
     window_pass,
 )
 
@@ -52,7 +54,7 @@ MAX_RAMP = 60.0  # px: the longest ramp an area edge is measured across
 # Profiles are sampled bilinearly (:mod:`activesurv_imaging.kernels`): bicubic, tried with
 # the edges off the grid, read the physically based set worse (0.048 / 0.19 mm against 0.043 /
 # 0.13) and costs more.
-FIRST_PASS_STRIDE = 2  # the first pass measures every other boundary pixel
+FIRST_PASS_STRIDE = 4  # the first pass measures every fourth boundary pixel
 WINDOW_STEP = 1.0  # px: edges' windows are rounded up to it (profiles of one length at once)
 # Area edges across a known streak (its model, :mod:`activesurv_imaging.streak`, is of them).
 AREA_MIN_STREAK = 3.0  # px, the streak's length
@@ -193,8 +195,8 @@ def subpixel_edges(
         half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
     step = 0.25 if half <= 6.0 else 0.5
     # Measured again off the grid, the edges need the first pass only for a first fit, the
-    # blur and the gaps: every other boundary pixel tells them as well.
-    stride = FIRST_PASS_STRIDE if config.area_edges and len(boundary) >= 64 else 1
+    # blur and the gaps: every fourth boundary pixel tells them as well (at least 32 of them).
+    stride = max(min(FIRST_PASS_STRIDE, len(boundary) // 32), 1) if config.area_edges else 1
     boundary, normals = boundary[::stride], normals[::stride]
     lut = _response_lut(config.gamma)
     t_all, sig2 = first_pass(image, lut, boundary, normals, half, step, _linear_contrast(config))
@@ -315,7 +317,7 @@ def _blur_variance(raw: Array, swept: Array | None = None) -> tuple[float, float
     usable = len(raw) // arcs * arcs
     if usable == 0:
         return 0.0, 0.0
-    per_arc = _row_medians(np.vstack([raw[:usable], share[:usable]]).reshape(2 * arcs, -1))
+    per_arc = row_medians(np.vstack([raw[:usable], share[:usable]]).reshape(2 * arcs, -1))
     wide, streak = per_arc[:arcs], per_arc[arcs:]
     iso = wide - streak
     if swept is not None and float(np.max(swept)) >= AREA_MIN_STREAK:
@@ -329,17 +331,6 @@ def _blur_variance(raw: Array, swept: Array | None = None) -> tuple[float, float
         max(float(iso.min()), 0.0) if len(iso) else 0.0,
         max(float(wide.max()), 0.0) if len(wide) else 0.0,
     )
-
-
-def _row_medians(rows: Array) -> Array:
-    """Each row's median of its finite values (NaN for a row without any): numpy's
-    ``nanmedian`` of a small array goes through masked arrays and costs a millisecond."""
-    ordered = np.sort(rows, axis=1)  # NaN sorts last
-    n = np.isfinite(rows).sum(axis=1)
-    idx = np.arange(len(rows))
-    lo = ordered[idx, np.maximum((n - 1) // 2, 0)]
-    hi = ordered[idx, np.maximum(n // 2, 0)]
-    return np.where(n > 0, 0.5 * (lo + hi), np.nan)
 
 
 def first_crossing(level: Array, steps: Array, at: float) -> Array:
@@ -357,15 +348,8 @@ def first_crossing(level: Array, steps: Array, at: float) -> Array:
 
 def _curvature(ell: Ellipse, pts: Array) -> Array:
     """The ellipse's curvature (1/px) at the points nearest ``pts`` (by their angle)."""
-    a, b = ell.semi_axes
-    ca, sa = math.cos(ell.angle), math.sin(ell.angle)
-    d = pts - ell.center
-    x = (ca * d[:, 0] + sa * d[:, 1]) / a
-    y = (-sa * d[:, 0] + ca * d[:, 1]) / b
-    phi = np.arctan2(y, x)
-    return np.asarray(
-        a * b / (a * a * np.sin(phi) ** 2 + b * b * np.cos(phi) ** 2) ** 1.5, dtype=np.float64
-    )
+    (a, b), (cx, cy) = ell.semi_axes, ell.center
+    return curvature(float(cx), float(cy), a, b, ell.angle, np.ascontiguousarray(pts))
 
 
 @functools.lru_cache(maxsize=16)

@@ -430,3 +430,35 @@ def evenly_spaced(
         nrm[kept, 0], nrm[kept, 1] = ux / norm, uy / norm
         kept += 1
     return pts[:kept], nrm[:kept], near[:kept]
+
+
+@_compiled
+def row_medians(rows: Array) -> Array:
+    """Each row's median of its finite values (NaN for a row without any)."""
+    r, c = rows.shape
+    out = np.full(r, np.nan)
+    buf = np.empty(c)
+    scratch = np.empty(c)
+    for i in range(r):
+        n = 0
+        for j in range(c):
+            if math.isfinite(rows[i, j]):
+                buf[n] = rows[i, j]
+                n += 1
+        if n:
+            out[i] = _median(buf, 0, n, scratch)
+    return out
+
+
+@_compiled
+def curvature(cx: float, cy: float, a: float, b: float, angle: float, points: Array) -> Array:
+    """The ellipse's curvature (1/px) at the points of it nearest ``points`` by their angle."""
+    ca, sa = math.cos(angle), math.sin(angle)
+    n = points.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        dx, dy = points[i, 0] - cx, points[i, 1] - cy
+        phi = math.atan2((-sa * dx + ca * dy) / b, (ca * dx + sa * dy) / a)
+        s, c = math.sin(phi), math.cos(phi)
+        out[i] = a * b / (a * a * s * s + b * b * c * c) ** 1.5
+    return out

@@ -31,7 +31,7 @@ help:
 	@echo 'make lint   - ruff + mypy --strict on the core modules'
 	@echo 'make setup  - only create/refresh .venv (idempotent; every target calls it)'
 
-setup: $(STAMPS)/packages
+setup: $(STAMPS)/kernels
 
 $(STAMPS)/venv:
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,14 @@ $(STAMPS)/interfaces: $(STAMPS)/deps $(IFACE_SRC)
 
 $(STAMPS)/packages: $(STAMPS)/interfaces $(PKG_META)
 	$(PIP) install -q --no-deps --no-build-isolation $(foreach p,$(PKGS),-e src/$(p))
+	@touch $@
+
+# The imager's compiled loops (numba), cached beside their source: compiled here once, not by
+# the first camera of the first run.
+KERNELS := src/activesurv_imaging/activesurv_imaging/kernels.py
+$(STAMPS)/kernels: $(STAMPS)/packages $(KERNELS)
+	@echo 'compiling the imaging kernels (once, about 20 s)'
+	$(PY) -c 'from activesurv_imaging.kernels import warm_up; warm_up()'
 	@touch $@
 
 demo: setup

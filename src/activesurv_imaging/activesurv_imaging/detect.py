@@ -197,7 +197,8 @@ def subpixel_edges(
     # Measured again off the grid, the edges need the first pass only for a first fit, the
     # blur and the gaps: every fourth boundary pixel tells them as well (at least 32 of them).
     stride = max(min(FIRST_PASS_STRIDE, len(boundary) // 32), 1) if config.area_edges else 1
-    boundary, normals = boundary[::stride], normals[::stride]
+    boundary = np.ascontiguousarray(boundary[::stride])
+    normals = np.ascontiguousarray(normals[::stride])
     lut = _response_lut(config.gamma)
     t_all, sig2 = first_pass(image, lut, boundary, normals, half, step, _linear_contrast(config))
     idx = np.nonzero(np.isfinite(t_all))[0]

@@ -49,6 +49,7 @@ from activesurv_imaging.conversions import (
 )
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.imager_params import PARAMS
+from activesurv_imaging.kernels import warm_up
 from activesurv_imaging.ros.software_trigger import SoftwareTrigger
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
 
@@ -62,6 +63,10 @@ class ImagerNode(Node):
         mount = mount_from_parameters(self.camera_id, {n: v[n] for n in MOUNT_PARAMETERS})
         self.core: CaptureCore[Image] = core_from_parameters(v, mount, image_to_gray)
         self.counts: Counter[str] = Counter()
+        # The imaging kernels compiled (or loaded from numba's cache) before the first frame.
+        took = warm_up()
+        if took > 2.0:
+            self.get_logger().info(f'imaging kernels compiled in {took:.0f} s (cached from now)')
         self._info_tolerance = float(v['camera_info_tolerance'])
         self._info_checked = False  # a driver's camera_info only compared with the file's
         service = str(v['trigger_service'])

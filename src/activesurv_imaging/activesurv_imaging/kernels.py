@@ -19,6 +19,7 @@ not writable, in numba's user cache directory): a fresh clone's first call compi
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
@@ -269,6 +270,36 @@ def otsu(hist: Array) -> int:
 
 
 @_compiled
+def _solve3(a: Array, b: Array) -> Array:
+    """``a^-1 b`` for a symmetric 3 x 3 ``a`` (its adjugate: numpy's general solver takes
+    numba five seconds to compile).
+
+    Raises:
+        numpy.linalg.LinAlgError: ``a`` singular to 1e-13 of its scale.
+    """
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    scale = 0.0
+    for i in range(3):
+        for j in range(3):
+            scale = max(scale, abs(a[i, j]))
+    if not abs(det) > 1e-13 * scale**3:
+        raise np.linalg.LinAlgError('singular matrix')
+    inv = np.empty((3, 3))
+    inv[0, 0], inv[1, 0], inv[2, 0] = c00, c01, c02
+    inv[0, 1] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
+    inv[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
+    inv[2, 1] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
+    inv[0, 2] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    inv[1, 2] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    inv[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    out: Array = (inv / det) @ b
+    return out
+
+
+@_compiled
 def direct_fit(u: Array, v: Array, w: Array) -> Array:
     """The weighted constrained conic fit (Halir-Flusser) of points (u, v) with weights w:
     the conic (6,) in those coordinates, NaN when no eigenvector is an ellipse.
@@ -282,7 +313,7 @@ def direct_fit(u: Array, v: Array, w: Array) -> Array:
     s1 = np.ascontiguousarray(s[:3, :3])
     s2 = np.ascontiguousarray(s[:3, 3:])
     s3 = np.ascontiguousarray(s[3:, 3:])
-    t = -np.linalg.solve(s3, np.ascontiguousarray(s2.T))
+    t = -_solve3(s3, np.ascontiguousarray(s2.T))
     m = s1 + s2 @ t
     mm = np.empty((3, 3))
     for k in range(3):  # C1^-1 M
@@ -325,7 +356,7 @@ def arc_weights(
     s = np.empty(n)
     for k in range(n):
         s[order[k]] = 0.5 * (gap[k] + gap[k - 1])  # gap[-1]: the last point's, round to it
-    floor = 1e-6 * max(np.median(s), 1e-12)
+    floor = 1e-6 * max(_median(s, 0, n, np.empty(n)), 1e-12)
     for i in range(n):
         s[i] = max(s[i], floor)
     return s
@@ -462,3 +493,32 @@ def curvature(cx: float, cy: float, a: float, b: float, angle: float, points: Ar
         s, c = math.sin(phi), math.cos(phi)
         out[i] = a * b / (a * a * s * s + b * b * c * c) ** 1.5
     return out
+
+
+def warm_up() -> float:
+    """Compile every kernel (or load it from numba's cache) with the types the imager calls
+    it with, so that no frame pays for it: seconds taken (~0.5 s from the cache; ~16 s to
+    compile, once per machine and source: ``make setup`` does it)."""
+    start = time.perf_counter()
+    img = np.zeros((16, 16), dtype=np.uint8)
+    lut = np.arange(256, dtype=np.float64)
+    angle = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
+    pts = np.ascontiguousarray(
+        np.column_stack([8.0 + 4.0 * np.cos(angle), 8.0 + 3.0 * np.sin(angle)])
+    )
+    nrm = np.ascontiguousarray(np.column_stack([np.cos(angle), np.sin(angle)]))
+    u, v, w = pts[:, 0] - 8.0, pts[:, 1] - 8.0, np.ones(len(angle))
+    conic = np.array([1.0 / 16.0, 0.0, 1.0 / 9.0, 0.0, 0.0, -1.0])
+    first_pass(img, lut, pts, nrm, 4.0, 0.25, 40.0)
+    window_pass(img, lut, pts, nrm, np.full(len(angle), 5.0), 4.0, True, 40.0)
+    direct_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), w)
+    sampson_weights(np.ascontiguousarray(u), np.ascontiguousarray(v), w, conic)
+    arc_weights(np.ascontiguousarray(u), np.ascontiguousarray(v), 0.0, 0.0, 4.0, 3.0, 0.0)
+    ellipse_parameters(1.0 / 16.0, 0.0, 1.0 / 9.0, 0.0, 0.0, -1.0)
+    sampson(conic, pts)
+    otsu(np.ones(256))
+    outward_normals(conic, 8.0, 8.0, pts)
+    evenly_spaced(pts, 8.0, 8.0, 4.0, 3.0, 0.0, 16)
+    row_medians(np.ones((2, 4)))
+    curvature(8.0, 8.0, 4.0, 3.0, 0.0, pts)
+    return time.perf_counter() - start

@@ -27,6 +27,7 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_imaging.conversions import info_disagreement
 from activesurv_imaging.errors import VisionErrors
+from activesurv_imaging.kernels import warm_up
 from activesurv_imaging.overhead import load_extrinsics, overhead_fix, overhead_fixes
 
 
@@ -70,6 +71,10 @@ class OverheadLocatorNode(Node):
         self.marker_height = float(v['marker_height'])
         self.marker_radius = float(v['marker_radius'])
         self.frame_id = str(v['frame_id'])
+        # The imaging kernels compiled (or loaded from numba's cache) before the first frame.
+        took = warm_up()
+        if took > 2.0:
+            self.get_logger().info(f'imaging kernels compiled in {took:.0f} s (cached from now)')
         self.camera: CameraModel | None = None
         self._from_file = bool(v['camera_info_file'])
         if self._from_file:  # a driver's camera_info is then only compared with it

@@ -202,3 +202,32 @@ def test_a_node_whose_teardown_hangs_is_ended_by_the_alarm() -> None:
     finally:
         proc.kill()
         proc.wait(5)
+
+
+SLOW_START = """
+import time
+from rclpy.node import Node
+from activesurv_common.ros.node import run_node
+
+def slow() -> Node:
+    print('starting', flush=True)
+    time.sleep(1.5)  # a node still starting (compiling kernels, reading files)
+    return Node('slow_start')
+
+raise SystemExit(run_node('slow_start', slow, []))
+"""
+
+
+def test_a_node_asked_to_stop_while_starting_stops_cleanly_once_started() -> None:
+    """SIGINT while a node is still being built does not kill it mid-start (Python's default
+    would: exit -2, nothing flushed): it is remembered, and the node stops as soon as it has
+    started, exit 0."""
+    proc = subprocess.Popen([sys.executable, '-c', SLOW_START], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == 'starting'
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(15) == 0
+    finally:
+        proc.kill()
+        proc.wait(5)

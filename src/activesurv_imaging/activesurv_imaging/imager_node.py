@@ -63,10 +63,7 @@ class ImagerNode(Node):
         mount = mount_from_parameters(self.camera_id, {n: v[n] for n in MOUNT_PARAMETERS})
         self.core: CaptureCore[Image] = core_from_parameters(v, mount, image_to_gray)
         self.counts: Counter[str] = Counter()
-        # The imaging kernels compiled (or loaded from numba's cache) before the first frame.
-        took = warm_up()
-        if took > 2.0:
-            self.get_logger().info(f'imaging kernels compiled in {took:.0f} s (cached from now)')
+        warm_up()  # the imaging kernels compiled (make setup) or loaded before the first frame
         self._info_tolerance = float(v['camera_info_tolerance'])
         self._info_checked = False  # a driver's camera_info only compared with the file's
         service = str(v['trigger_service'])
@@ -181,12 +178,9 @@ class ImagerNode(Node):
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')
-        values: dict[str, Any] = dict(self.counts)
-        values.update(
-            pending=len(self.core.pending),
-            frames_buffered=len(self.core.frames),
-            camera_info=self.core.camera is not None,
-        )
+        values: dict[str, Any] = dict(self.counts, pending=len(self.core.pending))
+        values.update(frames_buffered=len(self.core.frames))
+        values['camera_info'] = self.core.camera is not None
         s = diagnostics.status(
             f'activesurv/imager/{self.camera_id}',
             self.camera_id,

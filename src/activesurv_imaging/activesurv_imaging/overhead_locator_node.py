@@ -71,10 +71,7 @@ class OverheadLocatorNode(Node):
         self.marker_height = float(v['marker_height'])
         self.marker_radius = float(v['marker_radius'])
         self.frame_id = str(v['frame_id'])
-        # The imaging kernels compiled (or loaded from numba's cache) before the first frame.
-        took = warm_up()
-        if took > 2.0:
-            self.get_logger().info(f'imaging kernels compiled in {took:.0f} s (cached from now)')
+        warm_up()  # the imaging kernels compiled (make setup) or loaded before the first frame
         self.camera: CameraModel | None = None
         self._from_file = bool(v['camera_info_file'])
         if self._from_file:  # a driver's camera_info is then only compared with it

@@ -36,7 +36,7 @@ import yaml
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
-from activesurv_common.ros.node import make_executor, one_line, spin_until_signal
+from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
 from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
 
@@ -76,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, yaml.YAMLError) as exc:
         print(f'container: error: {one_line(exc)}', file=sys.stderr)
         return 1
+    stop = StopRequest()  # a stop asked while the members start ends the container once started
     rclpy.init(args=args[1:], signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[Any] = []
     for m in members:
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     for n in nodes:
         executor.add_node(n)
     try:
-        spin_until_signal(executor)
+        spin_until_signal(executor, stop)
         flushed = False
         for n in nodes:
             flush = getattr(n, 'flush', None)

@@ -79,29 +79,38 @@ beyond the launcher's own escalation (SIGINT, 5 s, SIGTERM, 2 s, SIGKILL), so it
 stop short; it ends a node whose teardown hangs after its orchestrator died unseen."""
 
 
-def spin_until_signal(executor: Executor) -> None:
-    """Spin until SIGINT, SIGTERM, SIGHUP, an external shutdown of the context, or the death
-    of the process that started this one (:func:`~activesurv_common.lifetime.orphaned`).
+class StopRequest:
+    """Whether SIGINT, SIGTERM or SIGHUP has come since it was made (it installs their
+    handlers): made before a node is built, a stop asked while the node is still starting
+    (importing, compiling, reading its files) ends it cleanly once it has started, where
+    Python's default SIGINT would kill it mid-start."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        for sig in STOP_SIGNALS:
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self.requested = True
+        if orphaned():
+            _arm_orphan_alarm()
+
+
+def spin_until_signal(executor: Executor, stop: StopRequest | None = None) -> None:
+    """Spin until SIGINT, SIGTERM, SIGHUP (since ``stop`` was made; default: from now), an
+    external shutdown of the context, or the death of the process that started this one
+    (:func:`~activesurv_common.lifetime.orphaned`).
 
     A node left without its orchestrator (it was SIGKILLed) stops as on SIGTERM, and an alarm
     ends the process :data:`ORPHAN_GRACE` seconds later whatever its on-stop work is doing.
     """
-    stopping = False
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        stopping = True
-        if orphaned():
-            _arm_orphan_alarm()
-
-    for sig in STOP_SIGNALS:
-        signal.signal(sig, _stop)
+    stop = StopRequest() if stop is None else stop
     watched = PARENT_ENV in os.environ
     try:
-        while rclpy.ok() and not stopping:
+        while rclpy.ok() and not stop.requested:
             executor.spin_once(timeout_sec=0.1)
             if watched and orphaned():
-                stopping = True
+                stop.requested = True
                 _arm_orphan_alarm()
     except ExternalShutdownException:
         pass
@@ -149,6 +158,7 @@ def run_node(
     if '-h' in mine or '--help' in mine:
         print(help_text(name, factory))
         return 0
+    stop = StopRequest()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = factory()
@@ -165,7 +175,7 @@ def run_node(
         return 1
     executor.add_node(node)
     try:
-        spin_until_signal(executor)
+        spin_until_signal(executor, stop)
     finally:
         if on_stop is not None:
             on_stop(node)

@@ -449,9 +449,11 @@ def detect_markers(
 
 def _levels(img: NDArray[np.uint8]) -> tuple[int, int, int]:
     """The frame's 1 % and 99.9 % grey levels and its Otsu threshold, from one 256-bin
-    histogram (OpenCV's: a full-frame sort costs milliseconds, numpy's bincount one)."""
-    hist = cv2.calcHist([img], [0], None, [256], [0, 256]).ravel().astype(np.float64)
-    cdf = np.cumsum(hist) / img.size
+    histogram (OpenCV's: a full-frame sort costs milliseconds, numpy's bincount one) of every
+    other row: a frame's statistics at half the cost."""
+    rows = img[::2] if img.shape[0] >= 64 else img
+    hist = cv2.calcHist([rows], [0], None, [256], [0, 256]).ravel().astype(np.float64)
+    cdf = np.cumsum(hist) / rows.size
     lo, hi = int(np.searchsorted(cdf, 0.01)), int(np.searchsorted(cdf, 0.999))
     return lo, hi, otsu(hist)
 
@@ -509,12 +511,8 @@ def _marker_blobs(
         candidates += 1
         pts = contour.reshape(-1, 2)
         m = cfg.border_margin
-        if (
-            pts[:, 0].min() < m
-            or pts[:, 1].min() < m
-            or pts[:, 0].max() >= w - m
-            or pts[:, 1].max() >= h - m
-        ):
+        x, y, bw, bh = cv2.boundingRect(contour)
+        if x < m or y < m or x + bw - 1 >= w - m or y + bh - 1 >= h - m:
             reasons.append(
                 'a bright region touches the image border (marker partly out of '
                 'view, or background)'

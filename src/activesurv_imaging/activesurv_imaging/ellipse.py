@@ -33,6 +33,7 @@ from activesurv_imaging.kernels import (
     arc_weights,
     direct_fit,
     ellipse_parameters,
+    reweighted_fit,
     sampson,
     sampson_weights,
     scatter,
@@ -149,6 +150,19 @@ def _direct_fit_numpy(x: Array, y: Array, w: Array) -> Array:
     return np.concatenate([a1, T @ a1])
 
 
+def _reweighted_numpy(u: Array, v: Array, arc: Array, conic_n: Array, iterations: int) -> Array:
+    """:func:`activesurv_imaging.kernels.reweighted_fit` with numpy's complex ``eig``."""
+    for _ in range(iterations):
+        new = _direct_fit_numpy(u, v, sampson_weights(u, v, arc, conic_n))
+        new *= np.sign(new @ conic_n) / np.linalg.norm(new)
+        # Converged when the unit conic moves less than 1e-7 (the centre by ~1e-6 px).
+        done = np.linalg.norm(new - conic_n / np.linalg.norm(conic_n)) < CONVERGED
+        conic_n = new
+        if done:
+            break
+    return conic_n
+
+
 def _denormalise(conic: Array, mx: float, my: float, s: float) -> Array:
     """Conic in pixel coordinates from one fitted on u = (x - mx) * s, v = (y - my) * s."""
     A, B, C, D, E, F = conic
@@ -223,14 +237,14 @@ def fit_ellipse(
         # Arc lengths from the first fit: the points' order and spacing around the ellipse do
         # not change with the small corrections of the re-weighting (only |grad Q| does).
         arc = np.sqrt(_arc_weights(u, v, ellipse_from_conic(conic_n))) if iterations else u
-        for _ in range(iterations):
-            new = _direct_fit(u, v, sampson_weights(u, v, arc, conic_n))
-            new *= np.sign(new @ conic_n) / np.linalg.norm(new)
-            # Converged when the unit conic moves less than 1e-7 (the centre by ~1e-6 px).
-            done = np.linalg.norm(new - conic_n / np.linalg.norm(conic_n)) < CONVERGED
-            conic_n = new
-            if done:
-                break
+        try:  # compiled; numpy's complex eig when a reduced problem's eigenvalues are not real
+            conic_n = reweighted_fit(u, v, arc, conic_n, iterations, CONVERGED)
+        except np.linalg.LinAlgError as exc:
+            raise EllipseFitError('points are degenerate (collinear or too few)') from exc
+        except ValueError:
+            conic_n = _reweighted_numpy(u, v, arc, conic_n, iterations)
+        if not np.all(np.isfinite(conic_n)):
+            raise EllipseFitError('no ellipse fits these points')
     conic = _denormalise(conic_n, mx, my, s)
     ell = ellipse_from_conic(conic)
     rms = float(np.sqrt(np.mean(sampson_distances(conic, p) ** 2)))

@@ -59,8 +59,14 @@ def _sample(img: NDArray[np.uint8], lut: NDArray[np.float64], x: float, y: float
 @_compiled
 def _median(values: Array, start: int, stop: int, scratch: Array) -> float:
     """The median of ``values[start:stop]`` (a handful of samples: an insertion sort in
-    ``scratch``; numpy's median allocates, which costs more than the sort)."""
+    ``scratch``; numpy's median allocates, which costs more than the sort; more than 32: a
+    sort)."""
     n = stop - start
+    if n > 32:  # more than a handful: numpy's sort
+        ordered = np.sort(values[start:stop])
+        if n % 2:
+            return float(ordered[n // 2])
+        return float(0.5 * (ordered[n // 2 - 1] + ordered[n // 2]))
     for j in range(n):
         v = values[start + j]
         k = j
@@ -163,6 +169,7 @@ def window_pass(
         longest = max(longest, math.ceil((2.0 * halves[i] + 1e-9) / step))
     prof = np.empty(longest)
     scratch = np.empty(longest)
+    buf = np.empty(longest)
     for i in range(n):
         half = halves[i]
         step = 0.25 if half <= 8.0 else 0.5
@@ -179,8 +186,15 @@ def window_pass(
             m += 1
         if k == 0 or m == 0:
             continue
-        bright = _median(prof, 0, k, scratch)
-        dark = _median(prof, s - m, s, scratch)
+        # The levels from the margins' samples 0.5 px apart: closer ones interpolate the
+        # same pixels again, and tell the median nothing more.
+        thin = 2 if step < 0.5 else 1
+        for j in range(0, k, thin):
+            scratch[j // thin] = prof[j]
+        bright = _median(scratch, 0, (k + thin - 1) // thin, buf)
+        for j in range(s - m, s, thin):
+            scratch[(j - (s - m)) // thin] = prof[j]
+        dark = _median(scratch, 0, (m + thin - 1) // thin, buf)
         span = bright - dark
         scale = 1.0 / max(span, 1e-9)
         for j in range(s):
@@ -512,6 +526,7 @@ def warm_up() -> float:
     first_pass(img, lut, pts, nrm, 4.0, 0.25, 40.0)
     window_pass(img, lut, pts, nrm, np.full(len(angle), 5.0), 4.0, True, 40.0)
     direct_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), w)
+    reweighted_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), w, conic, 2, 1e-7)
     sampson_weights(np.ascontiguousarray(u), np.ascontiguousarray(v), w, conic)
     arc_weights(np.ascontiguousarray(u), np.ascontiguousarray(v), 0.0, 0.0, 4.0, 3.0, 0.0)
     ellipse_parameters(1.0 / 16.0, 0.0, 1.0 / 9.0, 0.0, 0.0, -1.0)
@@ -522,3 +537,37 @@ def warm_up() -> float:
     row_medians(np.ones((2, 4)))
     curvature(8.0, 8.0, 4.0, 3.0, 0.0, pts)
     return time.perf_counter() - start
+
+
+@_compiled
+def reweighted_fit(
+    u: Array, v: Array, arc: Array, conic: Array, iterations: int, converged: float
+) -> Array:
+    """The fit re-weighted from ``conic`` at most ``iterations`` times, each point weighted by
+    ``arc_i / |grad Q|`` of the previous conic, until the unit conic moves less than
+    ``converged`` (:func:`activesurv_imaging.ellipse.fit_ellipse`): the last conic, NaN when a
+    fit found no ellipse.
+
+    Raises:
+        numpy.linalg.LinAlgError, ValueError: as :func:`direct_fit`.
+    """
+    for _ in range(iterations):
+        new = direct_fit(u, v, sampson_weights(u, v, arc, conic))
+        if not np.isfinite(new[0]):
+            return new
+        dot = 0.0
+        nn = 0.0
+        nc = 0.0
+        for k in range(6):
+            dot += new[k] * conic[k]
+            nn += new[k] * new[k]
+            nc += conic[k] * conic[k]
+        scale = (1.0 if dot > 0.0 else (-1.0 if dot < 0.0 else 0.0)) / math.sqrt(nn)
+        moved = 0.0
+        for k in range(6):
+            new[k] *= scale
+            moved += (new[k] - conic[k] / math.sqrt(nc)) ** 2
+        conic = new
+        if math.sqrt(moved) < converged:
+            break
+    return conic

@@ -523,8 +523,11 @@ def warm_up() -> float:
     nrm = np.ascontiguousarray(np.column_stack([np.cos(angle), np.sin(angle)]))
     u, v, w = pts[:, 0] - 8.0, pts[:, 1] - 8.0, np.ones(len(angle))
     conic = np.array([1.0 / 16.0, 0.0, 1.0 / 9.0, 0.0, 0.0, -1.0])
-    first_pass(img, lut, pts, nrm, 4.0, 0.25, 40.0)
-    window_pass(img, lut, pts, nrm, np.full(len(angle), 5.0), 4.0, True, 40.0)
+    frozen = img.copy()
+    frozen.setflags(write=False)  # a frame straight from a message buffer: another type
+    for image in (img, frozen):
+        first_pass(image, lut, pts, nrm, 4.0, 0.25, 40.0)
+        window_pass(image, lut, pts, nrm, np.full(len(angle), 5.0), 4.0, True, 40.0)
     direct_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), w)
     reweighted_fit(np.ascontiguousarray(u), np.ascontiguousarray(v), w, conic, 2, 1e-7)
     sampson_weights(np.ascontiguousarray(u), np.ascontiguousarray(v), w, conic)

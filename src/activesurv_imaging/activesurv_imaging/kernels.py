@@ -57,6 +57,43 @@ def _sample(img: NDArray[np.uint8], lut: NDArray[np.float64], x: float, y: float
 
 
 @_compiled
+def _profile(
+    img: NDArray[np.uint8],
+    lut: Array,
+    px: float,
+    py: float,
+    nx: float,
+    ny: float,
+    start: float,
+    step: float,
+    count: int,
+    out: Array,
+) -> None:
+    """``count`` samples along (nx, ny) through (px, py), from ``start`` px on, ``step`` px
+    apart, into ``out``; a profile that lies inside the image (most) without clamping each
+    sample."""
+    h, w = img.shape
+    x0, y0 = px + nx * start, py + ny * start
+    x1, y1 = x0 + nx * step * (count - 1), y0 + ny * step * (count - 1)
+    hi_x, hi_y = w - 1.0 - 1e-9, h - 1.0 - 1e-9
+    if not (
+        min(x0, x1) >= 0.0 and max(x0, x1) <= hi_x and min(y0, y1) >= 0.0 and max(y0, y1) <= hi_y
+    ):
+        for j in range(count):
+            d = start + j * step
+            out[j] = _sample(img, lut, px + nx * d, py + ny * d)
+        return
+    dx, dy = nx * step, ny * step
+    for j in range(count):
+        x, y = x0 + j * dx, y0 + j * dy
+        ix, iy = int(x), int(y)
+        fx, fy = x - ix, y - iy
+        top = (1.0 - fx) * lut[img[iy, ix]] + fx * lut[img[iy, ix + 1]]
+        bottom = (1.0 - fx) * lut[img[iy + 1, ix]] + fx * lut[img[iy + 1, ix + 1]]
+        out[j] = (1.0 - fy) * top + fy * bottom
+
+
+@_compiled
 def _median(values: Array, start: int, stop: int, scratch: Array) -> float:
     """The median of ``values[start:stop]`` (a handful of samples: an insertion sort in
     ``scratch``; numpy's median allocates, which costs more than the sort; more than 32: a
@@ -120,9 +157,7 @@ def first_pass(
     scratch = np.empty(quarter)
     for i in range(n):
         px, py, nx, ny = points[i, 0], points[i, 1], normals[i, 0], normals[i, 1]
-        for j in range(s):
-            d = -half + j * step
-            prof[j] = _sample(img, lut, px + nx * d, py + ny * d)
+        _profile(img, lut, px, py, nx, ny, -half, step, s, prof)
         bright = _median(prof, 0, quarter, scratch)
         dark = _median(prof, s - quarter, s, scratch)
         if bright - dark < min_contrast:
@@ -175,9 +210,7 @@ def window_pass(
         step = 0.25 if half <= 8.0 else 0.5
         s = math.ceil((2.0 * half + 1e-9) / step)
         px, py, nx, ny = points[i, 0], points[i, 1], normals[i, 0], normals[i, 1]
-        for j in range(s):
-            d = -half + j * step
-            prof[j] = _sample(img, lut, px + nx * d, py + ny * d)
+        _profile(img, lut, px, py, nx, ny, -half, step, s, prof)
         k = 0  # samples at each end beyond the window's inner part (|d| > half - margin)
         while k < s and -half + k * step < -(half - margin):
             k += 1

@@ -184,12 +184,9 @@ def subpixel_edges(
     isotropic blur's variance found across the edge (px^2).
     """
     normals = _outward_normals(coarse, boundary)
-    half = float(
-        np.clip(
-            0.45 * coarse.semi_axes[1],
-            config.profile_half_length,
-            max(config.max_profile_half_length, config.profile_half_length),
-        )
+    half = min(
+        max(0.45 * coarse.semi_axes[1], config.profile_half_length),
+        max(config.max_profile_half_length, config.profile_half_length),
     )
     if config.streak_length > 0.0:  # the streak's ramp and a margin either side of it
         half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
@@ -501,10 +498,13 @@ def _marker_blobs(
     candidates = 0
     # A contour of fewer points cannot enclose min_area (its steps are at most sqrt(2) px, and
     # no outline shorter than a circle's encloses as much): noise specks, skipped unmeasured.
+    # Holes (not the outer boundary of a bright blob) and specks are sorted out at once: a
+    # textured frame has hundreds of contours.
     min_points = math.sqrt(4.0 * math.pi * min_area) / math.sqrt(2.0)
-    for contour, hier in zip(contours, hierarchy[0], strict=True):
-        if hier[3] != -1 or len(contour) < min_points:
-            continue  # a hole, not the outer boundary of a bright blob; or a speck
+    lengths = np.fromiter(map(len, contours), dtype=np.intp, count=len(contours))
+    outer = np.nonzero((hierarchy[0][:, 3] == -1) & (lengths >= min_points))[0]
+    for i in outer.tolist():
+        contour = contours[i]
         area = cv2.contourArea(contour)
         if area < min_area:
             continue  # speck of noise

@@ -9,12 +9,13 @@ Pipeline:
    the image border (marker partly out of view: an open contour), is outside the size range, or
    is not an ellipse (area / ellipse area, coarse fit residual). Two accepted blobs are rejected
    as "two markers": the pose of the wrong one would be confidently wrong.
-4. Sub-pixel boundary: each boundary pixel of the blob is moved along the coarse ellipse's normal
-   to where the grey-level profile crosses half-way between the local marker and plate levels
-   (bilinear interpolation, 0.25-px steps). For a blurred step edge this is the edge itself.
-   Then each edge again on a profile centred on it, its window sized from the edge's ramp (the
-   lens's blur, the known streak): the half-way crossing, or across a known streak the
-   area-equivalent edge (linear in the pixels, as the streak's model is).
+4. Sub-pixel boundary: boundary pixels of the blob (every fourth) are moved along the coarse
+   ellipse's normal to where the grey-level profile crosses half-way between the local marker
+   and plate levels (bilinear interpolation). For a blurred step edge this is the edge itself.
+   Then, at evenly spaced angles of a first fit of those (as many as the boundary has pixels),
+   each edge again on a profile centred on it, its window sized from the edge's ramp (the
+   lens's blur, the known streak): the area-equivalent edge, or the half-way crossing. The
+   per-edge loops are compiled (:mod:`activesurv_imaging.kernels`).
 5. Weighted least-squares ellipse fit (:func:`activesurv_imaging.ellipse.fit_ellipse`).
 """
 

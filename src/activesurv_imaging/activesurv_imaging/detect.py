@@ -14,8 +14,9 @@ Pipeline:
    and plate levels (bilinear interpolation). For a blurred step edge this is the edge itself.
    Then, at evenly spaced angles of a first fit of those (as many as the boundary has pixels),
    each edge again on a profile centred on it, its window sized from the edge's ramp (the
-   lens's blur, the known streak): the area-equivalent edge, or the half-way crossing. The
-   per-edge loops are compiled (:mod:`activesurv_imaging.kernels`).
+   lens's blur, the known streak): the half-way crossing, or across a known streak the
+   area-equivalent edge (linear in the pixels, as the streak's model is). The per-edge loops
+   are compiled (:mod:`activesurv_imaging.kernels`).
 5. Weighted least-squares ellipse fit (:func:`activesurv_imaging.ellipse.fit_ellipse`).
 """
 

@@ -103,3 +103,27 @@ def test_bad_weights_raise() -> None:
         fit_ellipse(pts, weights=np.ones(3))
     with pytest.raises(EllipseFitError, match='non-zero'):
         fit_ellipse(pts, weights=np.r_[np.ones(3), np.zeros(17)])
+
+
+def test_the_numpy_fallback_fits_as_the_compiled_fit_does(monkeypatch: pytest.MonkeyPatch) -> None:
+    """numba's ``eig`` raises where numpy's would return complex eigenvalues; the fit then
+    solves with numpy, to the same ellipse (the path is forced here: no point set of 20 000
+    random ones reached it)."""
+    import activesurv_imaging.ellipse as ellipse_module
+
+    rng = np.random.default_rng(4)
+    t = rng.uniform(0.0, 2.0 * math.pi, 200)
+    pts = np.column_stack([320 + 80 * np.cos(t), 240 + 45 * np.sin(t)]) + rng.normal(
+        0, 0.2, (200, 2)
+    )
+    compiled = fit_ellipse(pts)
+
+    def domain_change(*_: object) -> None:
+        raise ValueError('eig() argument must not cause a domain change.')
+
+    monkeypatch.setattr(ellipse_module, 'direct_fit', domain_change)
+    monkeypatch.setattr(ellipse_module, 'reweighted_fit', domain_change)
+    fallback = fit_ellipse(pts)
+    assert np.allclose(fallback.center, compiled.center, atol=1e-6)
+    assert np.allclose(fallback.semi_axes, compiled.semi_axes, atol=1e-6)
+    assert fallback.angle == pytest.approx(compiled.angle, abs=1e-8)

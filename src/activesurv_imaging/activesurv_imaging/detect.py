@@ -185,6 +185,10 @@ def subpixel_edges(
     ramp, so that the crossing is the edge whatever the blur. Returns the points and the
     isotropic blur's variance found across the edge (px^2).
     """
+    # Measured again off the grid, the edges need the first pass only for a first fit, the
+    # blur and the gaps: every fourth boundary pixel tells them as well (at least 32 of them).
+    stride = max(min(FIRST_PASS_STRIDE, len(boundary) // 32), 1) if config.area_edges else 1
+    boundary = np.ascontiguousarray(boundary[::stride])
     normals = _outward_normals(coarse, boundary)
     half = min(
         max(0.45 * coarse.semi_axes[1], config.profile_half_length),
@@ -193,11 +197,6 @@ def subpixel_edges(
     if config.streak_length > 0.0:  # the streak's ramp and a margin either side of it
         half = max(half, min(0.5 * config.streak_length + 8.0, 0.9 * coarse.semi_axes[1]))
     step = 0.25 if half <= 6.0 else 0.5
-    # Measured again off the grid, the edges need the first pass only for a first fit, the
-    # blur and the gaps: every fourth boundary pixel tells them as well (at least 32 of them).
-    stride = max(min(FIRST_PASS_STRIDE, len(boundary) // 32), 1) if config.area_edges else 1
-    boundary = np.ascontiguousarray(boundary[::stride])
-    normals = np.ascontiguousarray(normals[::stride])
     lut = _response_lut(config.gamma)
     t_all, sig2 = first_pass(image, lut, boundary, normals, half, step, _linear_contrast(config))
     idx = np.nonzero(np.isfinite(t_all))[0]

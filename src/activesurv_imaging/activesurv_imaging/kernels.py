@@ -42,6 +42,16 @@ def _compiled(f: F) -> F:
 
 
 @_compiled
+def _bilinear(img: NDArray[np.uint8], lut: NDArray[np.float64], x: float, y: float) -> float:
+    """Bilinear sample at (x, y) through ``lut``, (x, y) in [0, w - 1) x [0, h - 1)."""
+    x0, y0 = int(x), int(y)
+    fx, fy = x - x0, y - y0
+    top = (1.0 - fx) * lut[img[y0, x0]] + fx * lut[img[y0, x0 + 1]]
+    bottom = (1.0 - fx) * lut[img[y0 + 1, x0]] + fx * lut[img[y0 + 1, x0 + 1]]
+    return float((1.0 - fy) * top + fy * bottom)
+
+
+@_compiled
 def _sample(img: NDArray[np.uint8], lut: NDArray[np.float64], x: float, y: float) -> float:
     """Bilinear sample at (x, y), the border replicated, through ``lut``."""
     h, w = img.shape
@@ -49,11 +59,7 @@ def _sample(img: NDArray[np.uint8], lut: NDArray[np.float64], x: float, y: float
     # truncation is the floor.
     x = min(max(x, 0.0), w - 1.0 - 1e-9)
     y = min(max(y, 0.0), h - 1.0 - 1e-9)
-    x0, y0 = int(x), int(y)
-    fx, fy = x - x0, y - y0
-    top = (1.0 - fx) * lut[img[y0, x0]] + fx * lut[img[y0, x0 + 1]]
-    bottom = (1.0 - fx) * lut[img[y0 + 1, x0]] + fx * lut[img[y0 + 1, x0 + 1]]
-    return float((1.0 - fy) * top + fy * bottom)
+    return _bilinear(img, lut, x, y)
 
 
 @_compiled
@@ -85,12 +91,7 @@ def _profile(
         return
     dx, dy = nx * step, ny * step
     for j in range(count):
-        x, y = x0 + j * dx, y0 + j * dy
-        ix, iy = int(x), int(y)
-        fx, fy = x - ix, y - iy
-        top = (1.0 - fx) * lut[img[iy, ix]] + fx * lut[img[iy, ix + 1]]
-        bottom = (1.0 - fx) * lut[img[iy + 1, ix]] + fx * lut[img[iy + 1, ix + 1]]
-        out[j] = (1.0 - fy) * top + fy * bottom
+        out[j] = _bilinear(img, lut, x0 + j * dx, y0 + j * dy)
 
 
 @_compiled

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -50,7 +51,17 @@ from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.run_record import OnRig, RunRecord
 from activesurv_sim.xytable import TABLE_ID
 
-START_MARGIN = 25.0  # s from the launch to run time 0: nodes up, stages and table in place
+START_MARGIN = 25.0  # s from the launch to run time 0 at least: nodes up, stages in place
+START_CPU_S = 3.0  # s of one core a node process takes to start on a busy machine (imports,
+# DDS, an imager's compiled kernels), measured on a 2-core machine beside the lab
+
+
+def start_margin(processes: int, cores: int | None = None) -> float:
+    """Seconds from the launch to run time 0 for ``processes`` node processes: 10 s to place
+    the stages plus their start shared over the cores (at most 8 counted), and at least
+    :data:`START_MARGIN` (16 processes on 2 cores: 34 s; on 4 or more: 25 s)."""
+    n = max(1, min(cores or os.cpu_count() or 1, 8))
+    return max(START_MARGIN, 10.0 + START_CPU_S * processes / n)
 
 
 def hardware_files(exp: Experiment, hw: Hardware, out: Path) -> dict[str, str]:
@@ -367,12 +378,12 @@ def run_hardware(
     motion_correction: bool = True,
 ) -> Path:
     """Run ``exp`` on the rig ``hw`` (wall clock); returns the bag directory."""
-    origin = time.time() + START_MARGIN
     bag = out_dir / 'bag'
     out_dir.mkdir(parents=True, exist_ok=True)
-    specs = hardware_specs(
-        exp, hw, bag, origin, options.image_rate, home, motion_correction, options.record_frames
-    )
+    args = (options.image_rate, home, motion_correction, options.record_frames)
+    processes = len(hardware_specs(exp, hw, bag, time.time(), *args))
+    origin = time.time() + start_margin(processes)
+    specs = hardware_specs(exp, hw, bag, origin, *args)
     opts = replace(options, time_origin=origin, namespace=hw.namespace, processes='nodes')
     progress(
         f'hardware run on {hw.name}: {len(specs)} nodes; run time 0 at wall '

@@ -22,9 +22,9 @@ from typing import Any
 from activesurv_bringup.experiments.experiment import Experiment, load_experiment
 from activesurv_bringup.experiments.graph import Progress, Until, graph_specs, run_graph
 from activesurv_bringup.experiments.hardware_graph import (
-    START_MARGIN,
     hardware_specs,
     place_cameras,
+    start_margin,
 )
 from activesurv_bringup.experiments.options import RunOptions
 from activesurv_bringup.experiments.session_options import (
@@ -175,10 +175,12 @@ def run_surveil(
     if hardware is None:
         specs = surveil_specs(exp, bag, s, opts)
     else:
-        origin = time.time() + START_MARGIN
         opts = replace(
-            opts, time_origin=origin, namespace=hardware.namespace, processes='nodes', rtf=1.0
+            opts, time_origin=time.time(), namespace=hardware.namespace, processes='nodes', rtf=1.0
         )
+        processes = len(hardware_surveil_specs(exp, hardware, bag, s, opts, home))
+        origin = time.time() + start_margin(processes)
+        opts = replace(opts, time_origin=origin)
         specs = hardware_surveil_specs(exp, hardware, bag, s, opts, home)
         before_start = place_cameras(exp, origin)
     limit = (s.duration or 7 * 24 * 3600.0) / max(opts.rtf, 1e-3) * 1.5 + 120.0

@@ -177,7 +177,7 @@ def run_replay(
         ) as graph:
             _play(
                 graph, node, pubs, clock_pub, clock, obs.spin, messages, rtf, progress, faithful,
-                len(specs),
+                names,
             )  # fmt: skip
     return new_bag
 
@@ -193,19 +193,31 @@ def _play(
     rtf: float,
     progress: Progress,
     faithful: bool,
-    n_nodes: int,
+    names: set[str],
 ) -> None:
     """Publish the recorded inputs on the bag's clock (``clock(t_ns)`` sets /clock), once
-    every subscriber is matched."""
+    every subscriber is matched (``names``: the replay's nodes)."""
     # Every subscriber must be matched before the first message: the imagers subscribe
     # volatile, so a message sent before the match is lost to them (a camera's first
-    # demand then measured with a held, wrong stage state).
+    # demand then measured with a held, wrong stage state, or not at all). Matched means
+    # the replay's own readers of each topic discovered (the recorder's alone is not enough)
+    # and every discovered reader matched.
     everyone = [*pubs.items(), ('/clock', clock_pub)]
+    imagers = {n for n in names if n.endswith('_imager')}
+
+    def readers(topic: str) -> set[str]:
+        """The replay's nodes that must hear ``topic`` before it is played."""
+        if topic == '/capture_request':
+            return imagers | ({'fusion'} & names)
+        own = f'{topic.split("/")[1]}_imager'
+        return {own} if own in imagers else set()
 
     def matched() -> bool:
         for topic, pub in everyone:
-            known = len(node.get_subscriptions_info_by_topic(topic))
-            if known == 0 or pub.get_subscription_count() < known:
+            infos = node.get_subscriptions_info_by_topic(topic)
+            if not readers(topic) <= {i.node_name for i in infos}:
+                return False
+            if not infos or pub.get_subscription_count() < len(infos):
                 return False
         return True
 
@@ -217,7 +229,7 @@ def _play(
     while time.monotonic() < settle:  # and the subscribers matched back
         spin(0.05)
     how = 'the recorded QoS' if faithful else 'reliable + transient local QoS'
-    progress(f'replaying {len(messages)} messages into {n_nodes} nodes with {how}')
+    progress(f'replaying {len(messages)} messages into {len(names)} nodes with {how}')
     t0_bag = messages[0].t_ns
     t0_wall = time.monotonic()
     last_clock = 0

@@ -151,12 +151,12 @@ class XYTableNode(Node):
         self._publish_at(self.sim_time())
 
     def _publish_at(self, t: float) -> None:
-        stamp = sec_to_time(t)
+        stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)
+        for msg in self._states(t, stamp):
+            self._pub.publish(msg)
         if self._clock_pub is not None and t > self._last_clock:
             self._clock_pub.publish(Clock(clock=stamp))  # simulated time never runs back
             self._last_clock = t
-        for msg in self._states(t, stamp):
-            self._pub.publish(msg)
 
     def _states(self, t: float, stamp: Any) -> list[ObjectStateMsg]:
         """The object states at ``t``: one, or one per lane with several objects at once."""

@@ -40,7 +40,7 @@ from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
 from activesurv_sim.stream import PATH_KINDS, table_from_parameters
-from activesurv_sim.xytable import XYTable
+from activesurv_sim.xytable import XYTable, start_shortfall
 from activesurv_stages.errors import StageError
 
 PARAMS = (
@@ -63,12 +63,8 @@ PARAMS = (
     Param('publish_clock', True, 'own the simulated /clock'),
     Param('real_time_factor', 1.0, 'simulated s per wall s', above=0.0),
     Param('frame_id', 'world', 'frame of object_state'),
-    Param(
-        'wait_for_subscribers',
-        0,
-        'hold simulated time at 0 until object_state has this many subscribers',
-        minimum=0,
-    ),
+    Param('wait_for_subscribers', 0, 'hold time at 0 until object_state has this many', minimum=0),
+    Param('wait_for_clock_subscribers', 0, 'and until /clock has this many', minimum=0),
     Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
     Param('stream_seed', 0, "stream: seed of the objects' paths"),
     Param('arrival_interval', 30.0, "stream: s from one object's entry to the next", above=0.0),
@@ -91,7 +87,10 @@ class XYTableNode(Node):
         self.frame_id = str(g('frame_id').value)
         self._wall0: float | None = None  # simulated time starts when everyone listens
         self._created = time.monotonic()
-        self._wait_for = int(g('wait_for_subscribers').value)
+        self._wait_for = {
+            'object_state': int(g('wait_for_subscribers').value),
+            '/clock': int(g('wait_for_clock_subscribers').value),
+        }
         self._wait_timeout = float(g('wait_timeout').value)
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
@@ -130,14 +129,14 @@ class XYTableNode(Node):
     def _ready(self) -> bool:
         if self._wall0 is not None:
             return True
-        listeners = self._pub.get_subscription_count()
+        heard = {'object_state': self._pub.get_subscription_count()}
+        if self._clock_pub is not None:
+            heard['/clock'] = self._clock_pub.get_subscription_count()
+        short = start_shortfall(heard, self._wait_for)
         waited = time.monotonic() - self._created
-        if listeners >= self._wait_for or waited > self._wait_timeout:
-            if listeners < self._wait_for:
-                self.get_logger().warning(
-                    f'starting with {listeners} of {self._wait_for} object_state subscribers '
-                    f'after {waited:.0f} s'
-                )
+        if not short or waited > self._wait_timeout:
+            if short:
+                self.get_logger().warning(f'starting with {short} subscribers ({waited:.0f} s)')
             self._wall0 = time.monotonic()
             self.get_logger().info('simulated time starts')
             return True

@@ -53,6 +53,16 @@ class TimedPath:
         return (self.position(b) - self.position(a)) / max(b - a, 1e-12)
 
 
+def start_shortfall(heard: dict[str, int], wanted: dict[str, int]) -> str:
+    """What simulated time still waits for: ``''`` when every topic has the subscribers it
+    wants (``heard``/``wanted``: matched and expected subscribers per topic), else which do not,
+    e.g. ``'/clock 7 of 9'``. The table holds time at 0 until then (or its timeout): a node
+    whose /clock reader matched late stays at time 0 while the others run on (at rtf 3 a
+    dispatcher at t = 0 for 8 simulated seconds lost seven demands)."""
+    short = [f'{t} {heard.get(t, 0)} of {n}' for t, n in wanted.items() if heard.get(t, 0) < n]
+    return ', '.join(short)
+
+
 def check_in_table(xy: Array, what: str) -> None:
     (x0, x1), (y0, y1) = TABLE_RANGE
     bad = (

@@ -554,7 +554,7 @@ def _run(
             )
             progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
             graph.raise_if_stopping()
-            graph.start(specs[-1:])
+            graph.start([_held_for_clock(specs, opts)])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
     return bag
 
@@ -614,6 +614,30 @@ def _watch(
     _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
     if samples:
         (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
+
+
+def clock_readers(specs: Sequence[NodeSpec]) -> int:
+    """The /clock subscriptions the processes of ``specs`` start with: one per simulated-time
+    node, one per container holding any (its members share it: ``compose.share_clock``)."""
+
+    def sim(s: NodeSpec) -> bool:
+        return bool(s.parameters.get('use_sim_time'))
+
+    return sum(1 for s in specs if (any(sim(m) for m in s.members) if s.members else sim(s)))
+
+
+def _held_for_clock(specs: Sequence[NodeSpec], opts: RunOptions) -> NodeSpec:
+    """The last spec; the simulated xy table holds time at 0 until every process's /clock
+    reader (and this one's monitor's) has matched its writer, as it does for its object
+    readers: one matched late stays at time 0 while the rest run (at rtf 3 a dispatcher at
+    t = 0 for 8 simulated seconds answered seven demands with no camera)."""
+    table = specs[-1]
+    if table.module != 'activesurv_sim.xy_table_node' or opts.compose:
+        return table
+    if not table.parameters.get('publish_clock', True) or opts.time_origin is not None:
+        return table
+    readers = clock_readers(specs[:-1]) + 1  # + the monitor
+    return replace(table, parameters={**table.parameters, 'wait_for_clock_subscribers': readers})
 
 
 RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU

@@ -1,0 +1,39 @@
+"""Simulated time starts only when every process's /clock reader has matched the table's
+writer (``graph.clock_readers``, ``xytable.start_shortfall``): a reader matched late left a
+dispatcher at t = 0 for 8 simulated seconds at rtf 3, and seven demands without a camera."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from activesurv_bringup.experiments.experiment import load_experiment
+from activesurv_bringup.experiments.graph import clock_readers, graph_specs, group_processes
+from activesurv_launch.launcher import NodeSpec
+from activesurv_sim.xytable import start_shortfall
+
+pytestmark = pytest.mark.cross
+
+
+def test_the_table_waits_for_every_topic_it_names() -> None:
+    wanted = {'object_state': 6, '/clock': 9}
+    assert start_shortfall({'object_state': 6, '/clock': 9}, wanted) == ''
+    assert start_shortfall({'object_state': 6, '/clock': 10}, wanted) == ''
+    assert start_shortfall({'object_state': 6, '/clock': 8}, wanted) == '/clock 8 of 9'
+    assert start_shortfall({}, wanted) == 'object_state 0 of 6, /clock 0 of 9'
+    assert start_shortfall({}, {}) == ''
+
+
+def test_one_clock_reader_per_simulated_time_process(tmp_path: Path) -> None:
+    exp = load_experiment('A', 'fast', 1)
+    specs = graph_specs(exp, tmp_path / 'bag', 1.0)
+    nodes = specs[:-1]
+    assert specs[-1].module == 'activesurv_sim.xy_table_node'
+    # One process per node: every simulated-time node has its own reader.
+    assert clock_readers(nodes) == sum(bool(s.parameters.get('use_sim_time')) for s in nodes)
+    # Containers: one per process holding any simulated-time node (the members share it);
+    # the paper's graph: four cameras, overhead, core, fusion and the recorder.
+    grouped = group_processes(nodes)
+    assert clock_readers(grouped) == 8
+    assert clock_readers([NodeSpec('x', 'm', parameters={'use_sim_time': False})]) == 0

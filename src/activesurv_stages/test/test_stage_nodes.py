@@ -256,3 +256,46 @@ def test_stage_bridge_stop_service_and_estop(
         bridge.destroy_node()
         peer.destroy_node()
         emu.close()
+
+
+def test_sim_stage_states_of_an_instant_are_published_once(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """On a capture request the stage publishes its state at the instant ahead (from its
+    profile); at the instant it publishes nothing more unless a later goal changed it."""
+    from sensor_msgs.msg import JointState
+
+    from activesurv_common.ros.conversions import sec_to_time
+    from activesurv_interfaces.msg import CaptureRequest, StageGoal
+
+    stage = SimStageNode(parameter_overrides=[Parameter('publish_rate', value=2.0)])
+    peer = rclpy_context.create_node('sim_stage_instant_peer')
+    got: list[tuple[float, float, float, float]] = []  # (stamp, received, x, yaw)
+
+    def on_js(msg: JointState) -> None:
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        got.append((t, time.time(), msg.position[0], msg.position[1]))
+
+    try:
+        peer.create_subscription(JointState, topics.joint_states('cam1'), on_js, qos.STATE)
+        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+        goal = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+        assert spin_until([stage, peer], lambda: len(got) > 0 and req.get_subscription_count())
+        for moved in (False, True):
+            t = round(time.time() + 0.6, 3)
+            req.publish(CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1']))
+            assert spin_until([stage, peer], lambda t=t: any(s == t for s, *_ in got))
+            if moved:  # a goal after the request: the instant's state is published again
+                goal.publish(_goal(['cam1_x', 'cam1_yaw'], [0.01, 0.05]))
+                assert spin_until([stage, peer], lambda t=t: sum(s == t for s, *_ in got) >= 2)
+            spin_until([stage, peer], lambda t=t: time.time() > t + 0.3, timeout=2.0)
+            at_t = [g for g in got if g[0] == t]
+            assert all(r < t for _, r, *_ in at_t), 'a state of the instant came at it'
+            assert len(at_t) == (2 if moved else 1)
+        # The last one is where the new profile has the axes at the instant.
+        where = [stage.axes[j].state(t)[0] for j in ('cam1_x', 'cam1_yaw')]
+        assert at_t[-1][2:] == pytest.approx(where, abs=1e-12)
+        assert at_t[0][2:] != pytest.approx(where, abs=1e-6)
+    finally:
+        stage.destroy_node()
+        peer.destroy_node()

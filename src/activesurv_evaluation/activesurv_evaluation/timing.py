@@ -7,10 +7,11 @@ not in the bag):
 
 * ``stage_state``: the last assigned camera's first stage state stamped at or after the
   instant (where the camera was when the frame was taken);
-* ``frames``: each camera's frame for the demand (the frame stamped at the instant plus the
-  observation's ``frame_offset``) as the recorder heard it; where the bag has no camera frames
-  (hardware runs keep only those used, after imaging) the time the imager says the frame
-  reached it (the observation's ``frame_received``, on the imager's clock);
+* ``frames``: when each camera's frame for the demand reached its imager (the observation's
+  ``frame_received``, on the imager's clock, between ``/clock`` ticks on simulated time:
+  :class:`activesurv_common.ros.fine_clock.FineClock`); for observations without it (older
+  bags), when the recorder heard the frame stamped at the instant plus the observation's
+  ``frame_offset``;
 * ``observations``: each camera's marker observation;
 * ``estimate``: the fused estimate (the demand's ``latency``);
 * ``compute``: each camera's imager's own processing of its frame (detect, fit, pose; from
@@ -114,6 +115,9 @@ class StepTimes:
                 compute.setdefault(cam, spent)
             if int(o.status) == 3:  # no frame taken
                 continue
+            if math.isfinite(told := float(getattr(o, 'frame_received', math.nan))):
+                frames[cam] = told  # the imager's own clock: when it had the frame
+                continue
             arrivals = self._frames.get(cam)
             got = (
                 None
@@ -121,9 +125,7 @@ class StepTimes:
                 else arrivals.stamped(instant + float(getattr(o, 'frame_offset', 0.0)))
             )
             if got is not None:
-                frames[cam] = got - instant
-            elif math.isfinite(told := float(getattr(o, 'frame_received', math.nan))):
-                frames[cam] = told  # the imager's own clock: frames not in the bag
+                frames[cam] = got - instant  # bags from before the imager said it
         known = [s for s in states if s is not None]
         return {
             'stage_state': max(known) - instant if known and len(known) == len(states) else None,

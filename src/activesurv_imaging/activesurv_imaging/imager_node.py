@@ -36,6 +36,7 @@ from activesurv_common.ros.conversions import (
     time_to_sec,
     vector3,
 )
+from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_common.statuses import ObservationStatus
@@ -66,6 +67,7 @@ class ImagerNode(Node):
         warm_up()  # the imaging kernels compiled (make setup) or loaded before the first frame
         self._info_tolerance = float(v['camera_info_tolerance'])
         self._info_checked = False  # a driver's camera_info only compared with the file's
+        self._fine = FineClock(self.get_clock())
         service = str(v['trigger_service'])
         self._trigger = SoftwareTrigger(self, service, v['trigger_lead']) if service else None
 
@@ -88,8 +90,7 @@ class ImagerNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
-        # Real camera drivers publish best effort; our simulated cameras (and replays) publish
-        # reliably, and then nothing needs to be lost.
+        # Drivers publish best effort; our simulated cameras and replays reliably (none lost).
         image_qos = qos.SENSOR_RELIABLE if v['reliable_images'] else qos.SENSOR
         self.create_subscription(Image, topics.image(self.camera_id), self._on_image, image_qos)
         info = topics.camera_info(self.camera_id)
@@ -105,8 +106,8 @@ class ImagerNode(Node):
         self.create_timer(0.1, self._beat)
         self.create_timer(1.0, self._publish_diagnostics)
 
-    def _now(self) -> float:
-        return float(self.get_clock().now().nanoseconds) * 1e-9
+    def _now(self) -> float:  # between /clock ticks too: a frame's arrival, for the budget
+        return self._fine.now()
 
     def _on_request(self, msg: CaptureRequest) -> None:
         if self.camera_id in msg.camera_ids:

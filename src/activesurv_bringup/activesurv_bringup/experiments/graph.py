@@ -282,7 +282,9 @@ BACKGROUND = {'core': 5, 'overhead': 5}
 # The recorder writes what the others did: at a demand instant it wakes for every frame, stage
 # state and observation, and its copies and writes queued before the imagers' work delayed the
 # estimate by a fifth (Set A fast at rtf 1, six runs each alternately: median latency 23.1 ->
-# 18.3 ms at nice 10, its messages all recorded: reliable, it only lags).
+# 18.3 ms at nice 10, its messages all recorded: reliable, it only lags). Not in hardware runs:
+# there the lab saturates the machine and the recorder's wall-clock receive time is the latency
+# (a lab session at 15 Hz: median 96.5 ms at nice 0, 115.6 ms at nice 10).
 RECORDER_NICE = 10
 
 

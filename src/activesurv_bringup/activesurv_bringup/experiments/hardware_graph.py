@@ -32,7 +32,6 @@ from sensor_msgs.msg import JointState
 from activesurv_bringup.errors import NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
 from activesurv_bringup.experiments.graph import (
-    RECORDER_NICE,
     Progress,
     RunMonitor,
     core_specs,
@@ -159,7 +158,6 @@ def _recorder(
     return NodeSpec(
         'recorder',
         'activesurv_recording.recorder_node',
-        nice=RECORDER_NICE,  # not on a demand's critical path (see graph.RECORDER_NICE)
         parameters={
             'use_sim_time': False,
             'output': str(bag),

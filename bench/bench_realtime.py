@@ -2,9 +2,11 @@
 
 * ``ok`` / ``ok_with_k``: Set A fast (seed 7) demands answered ``ok``, and with k cameras, at
   rtf 1 (``runs`` runs; the worst is reported).
-* ``latency_ms`` / ``latency_p90_ms``: demand instant -> recorded TargetEstimate (at rtf 1
-  simulated seconds are wall seconds), median and 90th percentile over every demand of every
-  run.
+* ``latency_ms`` / ``latency_p90_ms``: demand instant -> the TargetEstimate's publication
+  (its ``published``, fusion's clock read between ``/clock`` ticks; at rtf 1 simulated seconds
+  are wall seconds), median and 90th percentile over every demand of every run;
+  ``latency_heard_ms``: the median of the same to when the recorder heard it (a listener at
+  nice 10, one DDS hop and its own wake-up later).
 * ``cpu_cores``: CPU seconds of every process of the run (nodes and orchestrator) over the wall
   seconds from the start of simulated time to the last estimate (median over runs);
   ``cpu_by_process`` itemises the first run.
@@ -16,15 +18,18 @@
   one of at most two runs at that rtf: a shared machine's stall of a fraction of a second
   costs several demands at rtf 4); ``max_rtf_runs`` lists every run's ``ok`` per rtf.
 * ``*_nodes``: the same at rtf 1 with one process per node (``--processes nodes``).
-* ``breakdown_ms``: where the latency goes, read off the first run's bag (the recorder's
-  receive times on the interpolated simulated clock), medians over the demands, from the demand
-  instant to: the table's state at the instant, the stage states at the instant, the first and
-  the last assigned camera's frame, the last observation, the estimate.
+* ``breakdown_ms``: where the latency goes, read off the first run's bag, medians over the
+  demands, from the demand instant to: the table's state at the instant, the stage states at
+  the instant (both as the recorder heard them, on the interpolated simulated clock), the
+  first and the last assigned camera's frame reaching its imager (the observations'
+  ``frame_received``), the last observation's and the estimate's publication (their
+  ``published``), and the estimate as the recorder heard it (``estimate_heard``).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import statistics
 import tempfile
@@ -87,11 +92,20 @@ def breakdown(bag: Path) -> dict[str, float]:
         elif m.topic.endswith('/image_raw') and m.topic.split('/')[1] in instants[tj]:
             steps[tj]['frames'].append(t)
         elif m.topic == '/marker_observations':
-            steps[tj]['observations'].append(t)
+            # The imager's own clock where the observation says it (frame, publication).
+            got = float(getattr(m.msg, 'frame_received', math.nan))
+            if math.isfinite(got):
+                steps[tj]['frames_told'].append(tj + got)
+            told = float(getattr(m.msg, 'published', math.nan))
+            steps[tj]['observations'].append(tj + told if math.isfinite(told) else t)
         elif m.topic == '/target_estimate':
-            steps[tj]['estimate'].append(t)
+            told = float(getattr(m.msg, 'published', math.nan))
+            steps[tj]['estimate'].append(tj + told if math.isfinite(told) else t)
+            steps[tj]['heard'].append(t)
     rows: dict[str, list[float]] = defaultdict(list)
     for tj, s in steps.items():
+        if s.get('frames_told'):
+            s['frames'] = s['frames_told']
         for key, pick, name in (
             ('state', min, 'table_state'),
             ('stages', max, 'stage_states'),
@@ -99,6 +113,7 @@ def breakdown(bag: Path) -> dict[str, float]:
             ('frames', max, 'last_frame'),
             ('observations', max, 'last_observation'),
             ('estimate', min, 'estimate'),
+            ('heard', min, 'estimate_heard'),
         ):
             if s.get(key):
                 rows[name].append(1e3 * (pick(s[key]) - tj))
@@ -109,18 +124,24 @@ def breakdown(bag: Path) -> dict[str, float]:
         'last_frame',
         'last_observation',
         'estimate',
+        'estimate_heard',
     )
     return {k: round(statistics.median(rows[k]), 1) for k in order if rows.get(k)}
 
 
 def _series(tmp: Path, processes: str, runs: int) -> dict[str, Any]:
-    oks, lat, cores, first_cpu, compute = [], [], [], None, []
+    oks, lat, heard, cores, first_cpu, compute = [], [], [], [], None, []
     n = 0
     for r in range(runs):
         doc, cpu = _run(1.0, tmp, f'{processes}{r}', processes)
         n = len(doc['demands'])
         oks.append(_ok(doc))
         lat += [d['latency'] for d in doc['demands'] if d['latency'] is not None]
+        heard += [
+            h
+            for d in doc['demands']
+            if (h := (d.get('timing') or {}).get('heard', {}).get('estimate')) is not None
+        ]
         compute += [
             c for d in doc['demands'] if (c := critical_compute(d.get('timing') or {})) is not None
         ]
@@ -131,6 +152,7 @@ def _series(tmp: Path, processes: str, runs: int) -> dict[str, Any]:
         'ok_with_k': f'{min(k for _, k in oks)}/{n}',
         'latency_ms': round(1e3 * statistics.median(lat), 1) if lat else None,
         'latency_p90_ms': round(1e3 * float(np.percentile(lat, 90)), 1) if lat else None,
+        'latency_heard_ms': round(1e3 * statistics.median(heard), 1) if heard else None,
         'compute_ms': round(1e3 * statistics.median(compute), 2) if compute else None,
         'latency_to_compute': round(statistics.median(lat) / statistics.median(compute), 2)
         if lat and compute

@@ -74,3 +74,53 @@ def test_xy_table_and_sim_stage_on_simulated_time(
     moved = math.hypot(first.x - 0.17, first.y - 0.06)
     assert moved <= 0.020 * max(0.0, t_first - 0.5) + 1e-3, (moved, t_first)
     assert objects[-1].top_marker.x > first.x
+
+
+@pytest.mark.graph
+def test_xy_table_publishes_one_state_at_a_demand_instant(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """A demand instant gets its own state and tick; the periodic state that would fall
+    within a quarter period of it is skipped (every process would wake twice just when the
+    cameras image)."""
+    from activesurv_common.ros.conversions import sec_to_time, time_to_sec
+    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+    from activesurv_launch.launcher import Launcher, NodeSpec
+
+    rate = 20.0
+    specs = [
+        NodeSpec(
+            'xy_table',
+            'activesurv_sim.xy_table_node',
+            parameters={'publish_rate': rate, 'wait_for_subscribers': 1},
+        )
+    ]
+    peer = rclpy_context.create_node('instant_peer')
+    stamps: list[float] = []
+    peer.create_subscription(
+        ObjectState,
+        topics.OBJECT_STATE,
+        lambda m: stamps.append(time_to_sec(m.header.stamp)),
+        qos.STATE,
+    )
+    requests = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+    instants: list[float] = []
+    try:
+        with Launcher(specs, workdir=tmp_path) as launcher:
+            assert spin_until([peer], lambda: launcher.check() is None and len(stamps) > 5, 30.0)
+            # Instants on the periodic states' grid (the table starts its time on a tick),
+            # 0.5 s ahead: the periodic state and the instant's would coincide.
+            base = round(stamps[-1] * rate) / rate + 0.5
+            for i in range(4):
+                t = base + 0.25 * i
+                instants.append(t)
+                requests.publish(
+                    CaptureRequest(demand_index=i, demand_instant=sec_to_time(t), camera_ids=['c'])
+                )
+            assert spin_until([peer], lambda: stamps[-1] > instants[-1] + 0.2, 30.0)
+            launcher.check()
+    finally:
+        peer.destroy_node()
+    for t in instants:
+        near = [s for s in stamps if abs(s - t) < 0.25 / rate]
+        assert near == [pytest.approx(t, abs=1e-6)], (t, near)

@@ -116,42 +116,90 @@ class FrameBuffer(Generic[T]):
 class ClockEstimate:
     """Simulated time between the ticks of ``/clock``, read off a steady wall clock.
 
-    A node on simulated time sees the time of the last tick (50 Hz: up to 20 ms behind). A
-    recorder that stamps what it receives, or a latency measured in simulated time, needs
-    better: this extrapolates from the last tick at the rate the recent ticks ran (the real
-    time factor), never more than ``max_ahead`` simulated seconds past it (a paused clock
-    stays paused) and never backwards.
+    A node on simulated time sees the time of the last tick (20 Hz in the graph: up to 50 ms
+    behind). A recorder that stamps what it receives, or a latency measured in simulated time,
+    needs better. A tick is heard late, never early: by the hop, and by as long as its process
+    waits for the CPU (at a demand instant, several milliseconds). So the estimate is fitted
+    to the ticks heard earliest (a lower envelope, as a network clock filter does): the rate
+    from the earliest-heard tick of the older and of the newer half of the recent ticks, the
+    origin from the earliest-heard of the newest ``recent``. A tick heard late then no longer
+    makes every reading after it late. It never reads more than ``max_ahead`` simulated
+    seconds past the last tick (a paused clock stays paused) and never backwards. A clock
+    held (the same time ticked again: paused, or not started yet) or a tick heard
+    ``max_late`` wall seconds behind the fit (a pause or a restart) starts the fit over.
     """
 
-    def __init__(self, window: int = 50, max_ahead: float = 0.25) -> None:
+    def __init__(
+        self, window: int = 200, max_ahead: float = 0.25, recent: int = 50, max_late: float = 0.1
+    ) -> None:
         self.window = window
         self.max_ahead = max_ahead
-        self._ticks: list[tuple[float, float]] = []
+        self.recent = recent
+        self.max_late = max_late
+        self._ticks: list[tuple[float, float]] = []  # (sim, wall) of the running clock
+        self._last_tick: tuple[float, float] | None = None
+        self._rate = 1.0
+        self._origin: float | None = None  # wall time of simulated 0 at the fitted rate
         self._last = -math.inf
 
     def tick(self, sim: float, wall: float) -> None:
         """A /clock tick at simulated time ``sim``, received at steady wall time ``wall``."""
         if not (math.isfinite(sim) and math.isfinite(wall)):
             return
-        if self._ticks and sim < self._ticks[-1][0]:
-            self._ticks.clear()  # the clock was reset (a new run): start over
-            self._last = -math.inf
+        last = self._last_tick
+        self._last_tick = (sim, wall)
+        if last is not None and sim < last[0]:
+            self._last = -math.inf  # the clock was reset (a new run): start over
+        if last is None or sim <= last[0]:
+            self._restart(sim, wall, held=last is not None and sim == last[0])
+            return
+        if self._origin is not None and wall - (self._origin + sim / self._rate) > self.max_late:
+            self._restart(sim, wall, held=False)
+            return
         self._ticks.append((sim, wall))
         del self._ticks[: -self.window]
+        self._fit()
+
+    def _restart(self, sim: float, wall: float, held: bool) -> None:
+        # A held clock's ticks do not lie on the running clock's line: not fitted.
+        self._ticks = [] if held else [(sim, wall)]
+        self._origin = None
+
+    def _fit(self) -> None:
+        ticks, n = self._ticks, len(self._ticks)
+        if n < 2:
+            return
+        r = self._rate
+
+        def earliest(lo: int, hi: int) -> tuple[float, float]:
+            return min(ticks[lo:hi], key=lambda t: t[1] - t[0] / r)
+
+        (s0, w0), (s1, w1) = (
+            (earliest(0, n // 2), earliest(n // 2, n))
+            if n >= 4
+            else (
+                ticks[0],
+                ticks[-1],
+            )
+        )
+        if w1 > w0 and s1 > s0:
+            self._rate = r = (s1 - s0) / (w1 - w0)
+        self._origin = min(w - s / r for s, w in ticks[-self.recent :])
 
     @property
     def rate(self) -> float:
         """Simulated seconds per wall second over the recent ticks (1.0 until known)."""
-        if len(self._ticks) < 2:
-            return 1.0
-        (s0, w0), (s1, w1) = self._ticks[0], self._ticks[-1]
-        return (s1 - s0) / (w1 - w0) if w1 > w0 and s1 > s0 else 1.0
+        return self._rate
 
     def now(self, wall: float) -> float | None:
         """Simulated time at steady wall time ``wall``; None before the first tick."""
-        if not self._ticks:
+        if self._last_tick is None:
             return None
-        sim, at = self._ticks[-1]
-        ahead = min(max(wall - at, 0.0) * self.rate, self.max_ahead)
-        self._last = max(self._last, sim + ahead)
+        sim, at = self._last_tick
+        fitted = (
+            sim + max(wall - at, 0.0) * self._rate
+            if self._origin is None
+            else (wall - self._origin) * self._rate
+        )
+        self._last = max(self._last, min(max(fitted, sim), sim + self.max_ahead))
         return self._last

@@ -49,3 +49,30 @@ def test_clock_estimate_stops_at_max_ahead_and_never_runs_back() -> None:
     assert c.now(20.5) == pytest.approx(2.05)  # not back to 2.01
     c.tick(0.0, 30.0)  # a new run: the clock starts over
     assert c.now(30.0) == 0.0
+
+
+def test_clock_estimate_is_not_made_late_by_a_tick_heard_late() -> None:
+    """Ticks at 20 Hz of a clock at 2x real time, some heard up to 9 ms late (a busy
+    process): readings follow the ticks heard earliest, not the last one heard."""
+    c = ClockEstimate()
+    rng = np.random.default_rng(3)
+    origin = 50.0
+    for k in range(1, 120):
+        late = 0.009 if k % 7 == 0 else float(rng.uniform(0.0, 0.0005))
+        c.tick(0.1 * k, origin + 0.05 * k + late)
+    assert c.rate == pytest.approx(2.0, rel=1e-3)
+    # The last tick (k = 119, simulated 11.9 s) is heard 9 ms late; 1 ms after it was sent:
+    assert c.now(origin + 0.05 * 119 + 0.001) == pytest.approx(11.902, abs=1e-3)
+    c.tick(12.0, origin + 0.05 * 120 + 0.009)  # heard late: read 9 ms after it was sent
+    assert c.now(origin + 0.05 * 120 + 0.009) == pytest.approx(12.018, abs=1e-3)
+
+
+def test_clock_estimate_fits_no_held_start() -> None:
+    """Ticks of a clock held at 0 before its run starts do not lie on its line."""
+    c = ClockEstimate()
+    for k in range(5):
+        c.tick(0.0, 10.0 + 0.05 * k)  # waiting for subscribers
+    c.tick(0.0, 10.21)
+    for k in range(1, 6):  # the run starts at wall 10.25
+        c.tick(0.05 * k, 10.25 + 0.05 * k)
+    assert c.now(10.25 + 0.25 + 0.01) == pytest.approx(0.26, abs=1e-6)

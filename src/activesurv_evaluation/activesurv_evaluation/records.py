@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from enum import Enum
 from typing import Any, TypeVar
@@ -150,7 +151,9 @@ def demand_record(
     rec.cameras = [str(c) for c in e.cameras_used]
     rec.faulty = [str(c) for c in e.cameras_faulty]
     rec.missing = [str(c) for c in e.cameras_missing]
-    rec.latency = t_ns * 1e-9 - tj
+    # As fusion published it (its fine clock); older bags: as the recorder heard it.
+    told = float(getattr(e, 'published', math.nan))
+    rec.latency = told if math.isfinite(told) else t_ns * 1e-9 - tj
     if outcome is not None and outcome.estimated and np.all(np.isfinite(msg_vector(e.position))):
         rec.estimated_position = msg_vector(e.position)
         rec.estimated_normal = msg_vector(e.normal)

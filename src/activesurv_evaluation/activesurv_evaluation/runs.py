@@ -40,7 +40,7 @@ from activesurv_evaluation.results import (
     write_results,
 )
 from activesurv_evaluation.session import evaluate_surveil
-from activesurv_evaluation.timing import StepTimes, step_topics
+from activesurv_evaluation.timing import StepTimes, published, step_topics
 from activesurv_evaluation.tracking import TrackRecorder
 from activesurv_hardware.stage_faults import StageFaults
 from activesurv_recording.bagio import read_bag
@@ -174,7 +174,11 @@ def _demand_records(
             record.marker_radius,
         )
         rec.timing = heard.steps.timing(
-            tj, rec.assigned, observed, None if est is None else est[1] * 1e-9
+            tj,
+            rec.assigned,
+            observed,
+            None if est is None else est[1] * 1e-9,
+            None if est is None else published(est[0]),
         )
         rec.t = t_run
         rec.predictions = heard.predicted.picks(j, tj)

@@ -24,7 +24,7 @@ from activesurv_evaluation.records import (
     msg_vector,
     run_obstacles,
 )
-from activesurv_evaluation.timing import StepTimes, step_topics
+from activesurv_evaluation.timing import StepTimes, published, step_topics
 from activesurv_evaluation.tracking import TrackRecorder, track_metrics
 from activesurv_recording.bagio import read_bag
 from activesurv_recording.errors import BagError
@@ -166,7 +166,11 @@ def _demand_rows(heard: _SessionBag, record: RunRecord, obstacles: Any) -> list[
             j, tj, s, req, [o for o, _ in observed], est, model, blocking, record.marker_radius
         )
         rec.timing = heard.steps.timing(
-            tj, rec.assigned, observed, None if est is None else est[1] * 1e-9
+            tj,
+            rec.assigned,
+            observed,
+            None if est is None else est[1] * 1e-9,
+            None if est is None else published(est[0]),
         )
         doc = rec.to_json()
         doc['t'] = tj - record.time_origin

@@ -12,8 +12,14 @@ not in the bag):
   :class:`activesurv_common.ros.fine_clock.FineClock`); for observations without it (older
   bags), when the recorder heard the frame stamped at the instant plus the observation's
   ``frame_offset``;
-* ``observations``: each camera's marker observation;
-* ``estimate``: the fused estimate (the demand's ``latency``);
+* ``observations``: each camera's marker observation, as its imager published it (the
+  observation's ``published``, on the imager's fine clock as ``frame_received``); for older
+  bags, when the recorder heard it;
+* ``estimate``: the fused estimate as fusion published it (its ``published``, on fusion's
+  fine clock; the demand's ``latency``); for older bags, when the recorder heard it;
+* ``heard``: when the recorder heard each observation and the estimate (``observations``,
+  ``estimate``): a listener's view, later than the producers' own by the hop and by the
+  recorder's wake-up (it runs at a lower priority in simulated runs);
 * ``compute``: each camera's imager's own processing of its frame (detect, fit, pose; from
   the observation's ``compute_time``; ``{}`` for bags from before it was carried).
 
@@ -97,8 +103,10 @@ class StepTimes:
         assigned: Sequence[str],
         observations: Sequence[tuple[Any, float]],
         estimate_received: float | None,
+        estimate_published: float | None = None,
     ) -> dict[str, Any]:
-        """The demand's budget: ``observations`` are (message, receive time) pairs."""
+        """The demand's budget: ``observations`` are (message, receive time) pairs;
+        ``estimate_published``: the estimate's own ``published`` (s after the instant)."""
         states = [
             s.first_at_or_after(instant)
             for c in assigned
@@ -106,10 +114,12 @@ class StepTimes:
         ]
         frames: dict[str, float] = {}
         seen: dict[str, float] = {}
+        heard: dict[str, float] = {}
         compute: dict[str, float] = {}
         for o, received in observations:
             cam = str(o.camera_id)
-            seen.setdefault(cam, received - instant)
+            heard.setdefault(cam, received - instant)
+            seen.setdefault(cam, published(o) if published(o) is not None else received - instant)
             spent = float(getattr(o, 'compute_time', 0.0))
             if spent > 0.0:
                 compute.setdefault(cam, spent)
@@ -127,13 +137,21 @@ class StepTimes:
             if got is not None:
                 frames[cam] = got - instant  # bags from before the imager said it
         known = [s for s in states if s is not None]
+        got = None if estimate_received is None else estimate_received - instant
         return {
             'stage_state': max(known) - instant if known and len(known) == len(states) else None,
             'frames': frames,
             'observations': seen,
-            'estimate': None if estimate_received is None else estimate_received - instant,
+            'estimate': estimate_published if estimate_published is not None else got,
             'compute': compute,
+            'heard': {'observations': heard, 'estimate': got},
         }
+
+
+def published(msg: Any) -> float | None:
+    """A message's own ``published`` (s after its instant), or None (unknown, older bags)."""
+    v = float(getattr(msg, 'published', math.nan))
+    return v if math.isfinite(v) else None
 
 
 def empty_timing(latency: float | None = None) -> dict[str, Any]:
@@ -144,6 +162,7 @@ def empty_timing(latency: float | None = None) -> dict[str, Any]:
         'observations': {},
         'estimate': latency,
         'compute': {},
+        'heard': {'observations': {}, 'estimate': None},
     }
 
 

@@ -84,3 +84,18 @@ def test_without_frames_in_the_bag_the_imager_says_when_its_frame_came() -> None
     timing = steps.timing(3.0, ['cam1', 'cam2'], [(told, 3.05), (unknown, 3.06)], 3.07)
     assert timing['frames'] == {'cam1': 0.041}
     assert largest_wait([timing]) is not None
+
+
+def test_the_producers_own_times_come_before_what_the_recorder_heard() -> None:
+    """Observations and the estimate say when they were published (their producers' clocks):
+    the budget takes those; the recorder's (later) hearing stays under ``heard``."""
+    steps = StepTimes()
+    t = 4.0
+    o = _obs('cam1')
+    o.frame_received, o.published = 0.001, 0.0045
+    timing = steps.timing(t, ['cam1'], [(o, 4.012)], 4.015, 0.005)
+    assert abs(timing['frames']['cam1'] - 0.001) < 1e-9
+    assert abs(timing['observations']['cam1'] - 0.0045) < 1e-9
+    assert abs(timing['estimate'] - 0.005) < 1e-9
+    assert abs(timing['heard']['observations']['cam1'] - 0.012) < 1e-9
+    assert abs(timing['heard']['estimate'] - 0.015) < 1e-9

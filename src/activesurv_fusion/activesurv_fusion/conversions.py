@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
@@ -47,8 +49,12 @@ def observation_to_answer(msg: MarkerObservation) -> Answer:
     )
 
 
-def result_to_estimate(result: DemandResult, frame_id: str) -> TargetEstimate:
+def result_to_estimate(
+    result: DemandResult, frame_id: str, now: float = math.nan
+) -> TargetEstimate:
+    """``now``: fusion's clock as it publishes (``published``, the latency budget)."""
     msg = TargetEstimate()
+    msg.published = float(now - result.demand_time)
     msg.header.stamp = sec_to_time(result.demand_time)
     msg.header.frame_id = frame_id
     msg.demand_index = result.index

@@ -30,6 +30,7 @@ from rclpy.parameter import Parameter
 
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
+from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_fusion.collector import DemandBatch, DemandCollector, resolve
@@ -96,6 +97,7 @@ class FusionNode(Node):
                 )
         self._status_counts: Counter[str] = Counter()
         self._counts: Counter[str] = Counter()
+        self._fine = FineClock(self.get_clock())  # an estimate's publication, for the budget
 
         self._estimate_pub = self.create_publisher(
             TargetEstimate, topics.TARGET_ESTIMATE, qos.RESULTS
@@ -157,7 +159,7 @@ class FusionNode(Node):
         for batch in batches:
             result = resolve(batch, z=z, max_faulty=None if max_faulty < 0 else max_faulty)
             self._status_counts[result.status.name] += 1
-            self._estimate_pub.publish(result_to_estimate(result, frame))
+            self._estimate_pub.publish(result_to_estimate(result, frame, self._fine.now()))
             if self._journal:
                 append_journal(self._journal, result.index)
             pose = result_to_pose(result, frame)

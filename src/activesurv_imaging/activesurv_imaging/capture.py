@@ -270,7 +270,7 @@ class CaptureCore(Generic[F]):
             if obs is None:
                 keep.append(r)
             else:
-                done.append(obs)
+                done.append(replace(obs, demand_time=r.demand_time))
         self.pending = keep
         return done
 

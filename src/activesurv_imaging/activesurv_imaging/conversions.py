@@ -72,7 +72,10 @@ def frame_to_compressed(gray: np.ndarray, stamp: float, frame_id: str) -> Compre
 
 
 # -- observations --------------------------------------------------------------------------
-def observation_to_msg(obs: Observation, frame_id: str = 'world') -> MarkerObservation:
+def observation_to_msg(
+    obs: Observation, frame_id: str = 'world', now: float = math.nan
+) -> MarkerObservation:
+    """``now``: the imager's clock as it publishes (``published``, the latency budget)."""
     msg = MarkerObservation()
     msg.header.stamp = sec_to_time(obs.stamp)
     msg.header.frame_id = frame_id
@@ -100,6 +103,7 @@ def observation_to_msg(obs: Observation, frame_id: str = 'world') -> MarkerObser
     msg.frame_offset = float(obs.frame_offset)
     msg.compute_time = float(obs.compute_time)
     msg.frame_received = float(obs.frame_received)
+    msg.published = float(now - obs.demand_time)  # NaN where either is unknown
     if obs.motion_correction is not None:
         c = msg.motion_correction
         c.x, c.y, c.z = (float(v) for v in obs.motion_correction)

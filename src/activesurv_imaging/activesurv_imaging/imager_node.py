@@ -158,7 +158,7 @@ class ImagerNode(Node):
     def _on_tick(self) -> None:
         for obs in self.core.poll(self._now()):
             self.counts[obs.status.name] += 1
-            self._obs_pub.publish(observation_to_msg(obs))
+            self._obs_pub.publish(observation_to_msg(obs, now=self._now()))
             cam = self.core.camera
             size = (cam.width, cam.height) if cam is not None else (640, 480)
             shapes = annotation_shapes(obs, cam.project if cam else None, image_size=size)

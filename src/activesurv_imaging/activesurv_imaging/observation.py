@@ -45,6 +45,7 @@ class Observation:
     frame_received: float = math.nan  # s: the frame's arrival minus the demand instant
     streak: Array | None = None  # px the marker's image moved over the exposure (taken out)
     blur: float = 0.0  # px: the view's blur beyond a sharp view's (the sensor model's b)
+    demand_time: float = math.nan  # s: the instant it answers (set by CaptureCore.poll)
 
 
 def failed(

@@ -1,6 +1,6 @@
 """A bag is read with the message definitions stored in it: a run recorded before a message
-gained fields (MarkerObservation.compute_time and frame_received, its last) still reads, and
-reports render."""
+gained fields (MarkerObservation.compute_time, frame_received and published, its last) still
+reads, and reports render."""
 
 from __future__ import annotations
 
@@ -22,7 +22,9 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     older = '\n'.join(
         line
         for line in (d / 'MarkerObservation.msg').read_text().splitlines()
-        if not line.startswith(('float64 compute_time', 'float64 frame_received'))
+        if not line.startswith(
+            ('float64 compute_time', 'float64 frame_received', 'float64 published')
+        )
         and not line.lstrip().startswith('# (the imager')
     )
     ts = get_typestore(Stores.ROS2_JAZZY)
@@ -32,7 +34,7 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     )
     ts.register(types)
     msg = MarkerObservation(camera_id='cam2', demand_index=7, compute_time=0.004)
-    raw = serialize_message(msg)[:-16]  # the old layout: without its last two float64
+    raw = serialize_message(msg)[:-24]  # the old layout: without its last three float64
     bag = tmp_path / 'old'
     writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
@@ -43,3 +45,4 @@ def test_a_bag_with_an_older_definition_reads_as_written(tmp_path: Path) -> None
     assert (m.msg.camera_id, m.msg.demand_index) == ('cam2', 7)
     assert not hasattr(m.msg, 'compute_time')  # read as it was written
     assert not hasattr(m.msg, 'frame_received')
+    assert not hasattr(m.msg, 'published')

@@ -10,9 +10,9 @@ Subscribes:
         publishes the object's state stamped exactly then (the paper's motion controller
         records the target's exact pose at the demand instants), and, when it owns /clock, a
         clock tick at exactly that instant: the simulated cameras render, and every node's
-        timers see the instant, without waiting for the next regular tick. On the request it
-        also publishes ``sim/planned_object_state``, the state its program will reach then
-        (simulated cameras render ahead with it; see ``sim_camera``).
+        timers see the instant (a regular tick that close is skipped). On the request it also
+        publishes ``sim/planned_object_state``, the state its program will reach then (the
+        simulated cameras render ahead with it; see ``sim_camera``).
 Parameters: path_type (parabola, line, csv, or stream: objects one after another, see
     ``activesurv_sim.stream``), path_points, csv_file, speed, acceleration, start_time (s of
     simulated time before the object starts; for a stream, the first entry), stream_seed,
@@ -40,7 +40,7 @@ from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
 from activesurv_sim.stream import PATH_KINDS, table_from_parameters
-from activesurv_sim.xytable import XYTable, start_shortfall
+from activesurv_sim.xytable import XYTable, near_instant, start_shortfall
 from activesurv_stages.errors import StageError
 
 PARAMS = (
@@ -106,10 +106,10 @@ class XYTableNode(Node):
             self.create_subscription(
                 CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
             )
-        rate = float(g('publish_rate').value)
+        self._period = 1.0 / float(g('publish_rate').value)
         # With its own clock the node steps on the wall clock; otherwise on its node clock.
         self.create_timer(
-            1.0 / (rate * self.rtf) if self.publish_clock else 1.0 / rate, self._on_tick
+            self._period / self.rtf if self.publish_clock else self._period, self._on_tick
         )
         what = (
             f'path of {self.table.path.duration:.1f} s from t={self.table.start_time:.1f} s'
@@ -147,7 +147,8 @@ class XYTableNode(Node):
             if self._clock_pub is not None:
                 self._clock_pub.publish(Clock(clock=sec_to_time(0.0)))
             return
-        self._publish_at(self.sim_time())
+        if not near_instant(t := self.sim_time(), self._triggers, self._period):
+            self._publish_at(t)
 
     def _publish_at(self, t: float) -> None:
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)

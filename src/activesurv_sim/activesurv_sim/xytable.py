@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -61,6 +61,14 @@ def start_shortfall(heard: dict[str, int], wanted: dict[str, int]) -> str:
     dispatcher at t = 0 for 8 simulated seconds lost seven demands)."""
     short = [f'{t} {heard.get(t, 0)} of {n}' for t, n in wanted.items() if heard.get(t, 0) < n]
     return ', '.join(short)
+
+
+def near_instant(t: float, instants: Iterable[float], period: float) -> bool:
+    """Whether a periodic state at ``t`` falls within a quarter ``period`` of a demand
+    instant whose own state and tick are (or were) published: it is then skipped, as the
+    instant's state serves for both, and every process wakes once, not twice, just when the
+    cameras image."""
+    return any(abs(t - tj) < 0.25 * period for tj in instants)
 
 
 def check_in_table(xy: Array, what: str) -> None:

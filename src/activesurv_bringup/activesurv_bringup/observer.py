@@ -27,7 +27,7 @@ from typing import Any, Self
 import numpy as np
 import rclpy
 from numpy.typing import NDArray
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
@@ -38,6 +38,7 @@ from activesurv_bringup.errors import NodeDiedError
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info, sec_to_time
+from activesurv_common.ros.node import make_executor
 from activesurv_interfaces.msg import CaptureRequest, StageGoal
 from activesurv_recording.bagio import cdr_header
 
@@ -60,7 +61,7 @@ class Observer:
         self.namespace = namespace
         self._owns_rclpy = False
         self._node: Node | None = None
-        self._executor: SingleThreadedExecutor | None = None
+        self._executor: Executor | None = None
         self._stage_subs: list[Any] = []  # watch_stages' subscriptions
         self.states: dict[str, JointState] = {}
         self._goal_pubs: dict[str, Any] = {}
@@ -82,8 +83,10 @@ class Observer:
         self._node = rclpy.create_node(self.name, namespace=self.namespace or None)
         # One executor for the node's life: rclpy.spin_once(node) adds the node to the global
         # executor and removes it again at every call. (What cost a lab session's monitor a
-        # sixth of a core was hearing every goal and poll: see unwatch_stages.)
-        self._executor = SingleThreadedExecutor()
+        # sixth of a core was hearing every goal and poll: see unwatch_stages.) The nodes'
+        # executor (rclpy's EventsExecutor): a run's monitor took 0.13 s of CPU against 0.35 s
+        # on the single-threaded one (Set A fast, four runs each).
+        self._executor = make_executor()
         self._executor.add_node(self._node)
         self.on_start()
         return self

@@ -56,6 +56,7 @@ PARAMS = (
         'capture_grace', 0.1, 's a capture request may wait for a fresh prediction', minimum=0.0
     ),
     Param('capture_hold', 0.0, 's past an instant its cameras stay still', minimum=0.0),
+    Param('replan_quiet', 0.05, 's past an instant before planning its cameras', minimum=0.0),
     Param('frame_id', 'world', 'frame of plans and markers'),
 )
 
@@ -74,6 +75,7 @@ class DispatcherNode(Node):
             float(v['camera_timeout']),
             float(v['capture_grace']),
             float(v['capture_hold']),
+            float(v['replan_quiet']),
         )
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.session = Dispatcher(self.setup, model, config)

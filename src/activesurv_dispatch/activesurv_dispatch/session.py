@@ -45,6 +45,10 @@ class DispatcherConfig:
             camera's frame nearest the instant lies up to half a frame period after it, and
             the stage state promised for the instant then holds for that frame too (0: the
             frame is exposed at the instant, as a triggered or simulated camera's).
+        replan_quiet: s past a serviced demand's instant before its freed cameras are
+            planned (0: at once, as lockstep does). The instant's frames are imaged and fused
+            in its first milliseconds; a plan computed then (5-10 ms of CPU) would queue them
+            on a busy host, and the next demand is seconds away.
     """
 
     k: int = 3
@@ -54,6 +58,7 @@ class DispatcherConfig:
     camera_timeout: float = 0.5
     capture_grace: float = 0.1
     capture_hold: float = 0.0
+    replan_quiet: float = 0.0
 
 
 BLUR_SAID = 0.1  # a view's visibility its predicted blur costs, from which the log says so
@@ -120,6 +125,7 @@ class Dispatcher:
         self.horizon_stamp = -math.inf  # the overhead fix time behind the current horizon
         self._stalls: dict[str, float] = {}  # signal -> when every camera fell silent
         self._stall_over: dict[str, float] = {}  # signal -> when the stall ended
+        self._replan_at = math.inf  # a replan put off past a demand's instant (replan_quiet)
 
     # -- inputs ----------------------------------------------------------------------------
     def on_joints(self, camera_id: str, q: ArrayLike, now: float) -> Outputs:
@@ -190,6 +196,7 @@ class Dispatcher:
 
     # -- the work --------------------------------------------------------------------------
     def _replan(self, now: float) -> Outputs:
+        self._replan_at = math.inf  # whatever was put off is planned now
         if not self.joints:
             return Outputs()
         t0 = time.perf_counter()
@@ -309,6 +316,8 @@ class Dispatcher:
                 (default ``now``); lockstep looks ahead to the end of its step.
         """
         out = self._check_alive(now)
+        if now >= self._replan_at:
+            out.merge(self._replan(now))
         out.merge(self._request_due(now))
         for missed in self.scheduler.missed(now, self.demands):
             self.planner.serviced(missed.demand.index)
@@ -339,7 +348,12 @@ class Dispatcher:
             del self.held_until[c]
         self.motion.holding.difference_update(released)
         if serviced or released:  # the next demand first, the released cameras free again
-            out.merge(self._replan(now))
+            quiet = max((d.demand.time for d in serviced), default=-math.inf)
+            quiet += self.config.replan_quiet
+            if now < quiet:
+                self._replan_at = min(self._replan_at, quiet)  # on the first tick from then
+            else:
+                out.merge(self._replan(now))
         # A continuous session runs for hours: demands long past are forgotten.
         for j in self.scheduler.prune(now - FORGET_AFTER):
             self.demands.pop(j, None)

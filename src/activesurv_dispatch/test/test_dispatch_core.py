@@ -443,3 +443,30 @@ def test_the_log_says_which_views_lost_to_their_blur() -> None:
     out = session.set_horizon([moving], 0.0)
     (said,) = [text for _, text in out.events if 'assigned' in text]
     assert any(f'{c} ' in said and '(blur -' in said for c in lost), said
+
+
+@pytest.mark.parametrize('quiet', [0.0, 0.05])
+def test_a_serviced_demands_cameras_are_planned_after_the_replan_quiet(quiet: float) -> None:
+    """At a demand's instant its frames are imaged and fused; the plan that frees its cameras
+    (milliseconds of CPU) waits ``replan_quiet`` past the instant (0: at once, as lockstep)."""
+    from activesurv_dispatch.session import Dispatcher, DispatcherConfig, Outputs
+
+    setup = load_setup(motion='fast')
+    session = Dispatcher(setup, MODEL, DispatcherConfig(replan_quiet=quiet))
+    aimed = _aimed_joints('fast', 0.25)
+
+    def tick(now: float) -> Outputs:
+        for c, q in aimed.items():
+            session.on_joints(c, q, now)
+        return session.tick(now)
+
+    tick(1.0)
+    session.set_horizon([_demand(0, 2.0, 0.25), _demand(1, 3.0, 0.31)], 1.0)
+    tick(1.85)
+    out = tick(2.0)
+    assert [s.demand.index for s in out.serviced] == [0]
+    assert (out.plan is None) == (quiet > 0.0)  # planned at the instant only without a quiet
+    if quiet:
+        assert tick(2.0 + 0.5 * quiet).plan is None
+        later = tick(2.0 + quiet)
+        assert later.plan is not None and later.plan.first_index == 1

@@ -469,4 +469,5 @@ def test_a_serviced_demands_cameras_are_planned_after_the_replan_quiet(quiet: fl
     if quiet:
         assert tick(2.0 + 0.5 * quiet).plan is None
         later = tick(2.0 + quiet)
-        assert later.plan is not None and later.plan.first_index == 1
+        assert later.plan is not None
+        assert later.plan.first_index == 1

@@ -119,7 +119,8 @@ class StepTimes:
         for o, received in observations:
             cam = str(o.camera_id)
             heard.setdefault(cam, received - instant)
-            seen.setdefault(cam, published(o) if published(o) is not None else received - instant)
+            told = published(o)
+            seen.setdefault(cam, told if told is not None else received - instant)
             spent = float(getattr(o, 'compute_time', 0.0))
             if spent > 0.0:
                 compute.setdefault(cam, spent)
@@ -170,6 +171,19 @@ def critical_compute(timing: dict[str, Any]) -> float | None:
     """The slowest camera's processing of the demand's frame (s), or None if unknown."""
     spent = (timing.get('compute') or {}).values()
     return max(spent) if spent else None
+
+
+def camera_delays(demands: Iterable[dict[str, Any]]) -> list[float]:
+    """Each frame's arrival at its imager after its exposure (s): a camera's own delay as the
+    host sees it (exposure, read-out, transfer: ``timing.frames`` minus ``frame_offsets``, per
+    camera of every demand of a ``results.json``)."""
+    out = []
+    for d in demands:
+        offsets = d.get('frame_offsets') or {}
+        for cam, got in ((d.get('timing') or {}).get('frames') or {}).items():
+            if got is not None and offsets.get(cam) is not None:
+                out.append(float(got) - float(offsets[cam]))
+    return out
 
 
 STEPS = ('stage_state', 'frames', 'observations', 'estimate')

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 from activesurv_evaluation.timing import (
     StepTimes,
     budget,
+    camera_delays,
     critical_compute,
     empty_timing,
     largest_wait,
@@ -99,3 +100,12 @@ def test_the_producers_own_times_come_before_what_the_recorder_heard() -> None:
     assert abs(timing['estimate'] - 0.005) < 1e-9
     assert abs(timing['heard']['observations']['cam1'] - 0.012) < 1e-9
     assert abs(timing['heard']['estimate'] - 0.015) < 1e-9
+
+
+def test_a_cameras_own_delay_is_its_frames_arrival_after_exposure() -> None:
+    demands = [
+        {'frame_offsets': {'cam1': 0.010, 'cam2': -0.02}, 'timing': {'frames': {'cam1': 0.09}}},
+        {'frame_offsets': {'cam3': 0.0}, 'timing': {'frames': {'cam3': 0.05, 'cam4': 0.06}}},
+        {'frame_offsets': {}, 'timing': {}},
+    ]
+    assert [round(x, 9) for x in camera_delays(demands)] == [0.08, 0.05]

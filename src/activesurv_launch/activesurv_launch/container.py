@@ -36,6 +36,7 @@ import yaml
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
+from activesurv_common.ros import fast_logging
 from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
 from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
@@ -78,6 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     stop = StopRequest()  # a stop asked while the members start ends the container once started
     rclpy.init(args=args[1:], signal_handler_options=SignalHandlerOptions.NO)
+    fast_logging.install()
     nodes: list[Any] = []
     for m in members:
         try:

@@ -33,6 +33,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from activesurv_common.errors import CommonError
 from activesurv_common.lifetime import PARENT_ENV, STOP_SIGNALS, orphaned
+from activesurv_common.ros import fast_logging
 
 N = TypeVar('N', bound=Node)
 
@@ -164,6 +165,7 @@ def run_node(
         return 0
     stop = StopRequest()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    fast_logging.install()
     try:
         node = factory()
     except (*STARTUP_ERRORS, *errors) as exc:

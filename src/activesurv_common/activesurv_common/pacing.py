@@ -42,3 +42,37 @@ class Pacer:
             self._tokens -= 1.0
             return True
         return False
+
+
+class PhaseLock:
+    """Events on a fixed grid of a stream's own stamps: the first event in each period, the
+    periods starting ``early`` of a period before ``phase + n / rate``. Fed object states at
+    20 Hz, a 10 Hz stream with ``phase`` 0.05 s takes those stamped 0.05, 0.15, ... s (one
+    that is missing is made up for by the next state), whatever the stamp of the first: the
+    frames of a run fall at the same instants every time (a :class:`Pacer` takes its phase from
+    the first event's stamp).
+
+    Args:
+        rate: events per second (> 0).
+        phase: s, the grid's offset (any finite value).
+        early: fraction of a period before a grid instant that counts as it (jitter), in
+            [0, 1).
+    """
+
+    def __init__(self, rate: float, phase: float = 0.0, early: float = 0.25) -> None:
+        if not (math.isfinite(rate) and rate > 0.0):
+            raise CommonError(f'rate must be finite and > 0, got {rate}')
+        if not math.isfinite(phase):
+            raise CommonError(f'phase must be finite, got {phase}')
+        if not (math.isfinite(early) and 0.0 <= early < 1.0):
+            raise CommonError(f'early must be in [0, 1), got {early}')
+        self.rate, self.phase, self.early = float(rate), float(phase), float(early)
+        self._last: int | None = None
+
+    def ready(self, t: float) -> bool:
+        """Whether an event stamped ``t`` is the first of its period (and take it)."""
+        n = math.floor((t - self.phase) * self.rate + self.early)
+        if self._last is not None and n <= self._last:
+            return False
+        self._last = n
+        return True

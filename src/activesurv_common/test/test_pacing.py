@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from activesurv_common.errors import CommonError
-from activesurv_common.pacing import Pacer
+from activesurv_common.pacing import Pacer, PhaseLock
 
 
 def test_a_faster_stream_is_thinned_to_the_rate() -> None:
@@ -36,3 +36,18 @@ def test_bad_rates_are_refused() -> None:
         Pacer(0.0)
     with pytest.raises(CommonError, match='burst'):
         Pacer(10.0, burst=0.5)
+
+
+@pytest.mark.parametrize('first', [0.0, 0.0008, 0.0499])
+def test_phase_lock_takes_the_same_stamps_whatever_the_first(first: float) -> None:
+    """20 Hz states with jitter, a 10 Hz stream on the grid 0.05 + n / 10: the states stamped
+    near 0.05, 0.15, ... pass, wherever the stream started; a missing one is made up for."""
+    lock = PhaseLock(10.0, 0.05)
+    rng = np.random.default_rng(1)
+    stamps = [first] + [0.05 * k + float(rng.uniform(-0.002, 0.002)) for k in range(1, 40)]
+    taken = [t for t in stamps if lock.ready(t)]
+    grid = [round(t * 20) for t in taken if t > 0.04]
+    assert grid == list(range(1, 40, 2))  # 0.05, 0.15, ... (in 50 ms steps: odd)
+    lock = PhaseLock(10.0, 0.05)
+    gap = [t for t in (0.05, 0.1, 0.2, 0.25, 0.3, 0.35) if lock.ready(t)]
+    assert gap == [0.05, 0.2, 0.25, 0.35]  # 0.15 missing: 0.2 stands in for it

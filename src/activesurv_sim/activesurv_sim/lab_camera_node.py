@@ -46,7 +46,7 @@ from activesurv_sim import conversions as conv
 from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.sim_camera import on_table
-from activesurv_sim.sim_camera_params import PARAMS as CAMERA_PARAMS
+from activesurv_sim.sim_camera_params import PARAMS as SIM_CAMERA_PARAMS
 from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
 LAB_PARAMS = (
@@ -56,6 +56,7 @@ LAB_PARAMS = (
     Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
+CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name != 'frame_phase')  # own clock
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
 
 

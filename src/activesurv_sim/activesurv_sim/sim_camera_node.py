@@ -22,7 +22,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from activesurv_common.errors import CommonError
-from activesurv_common.pacing import Pacer
+from activesurv_common.pacing import Pacer, PhaseLock
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
@@ -89,7 +89,7 @@ class SimCameraNode(Node):
         self.create_timer(0.05, self._on_tick)
         rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
         # States pace the streams (a busy process's timer drops ticks), see _on_state.
-        self._stream = Pacer(rate) if rate > 0.0 else None
+        self._stream = PhaseLock(rate, float(g('frame_phase').value)) if rate > 0.0 else None
         self._preview = Pacer(preview) if preview > 0.0 else None
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         if preview > 0.0:

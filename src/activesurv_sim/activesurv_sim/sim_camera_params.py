@@ -31,6 +31,7 @@ PARAMS = (
         choices=('object', 'board'),
     ),
     Param('frame_rate', 0.0, 'free-running Hz; 0: triggered by capture requests', minimum=0.0),
+    Param('frame_phase', 0.0, 'free-running: frames at states stamped phase + n / frame_rate'),
     Param(
         'preview_rate',
         0.0,

@@ -116,6 +116,10 @@ def graph_specs(
                 **truth,
                 **_intrinsics(files, 'overhead'),
                 'frame_rate': exp.overhead_rate,
+                # Half a frame period off the grid the demand instants lie on: the overhead
+                # frame, its fix, prediction and plan never fall on an instant's imaging, and
+                # every run takes the same frames (lockstep takes them on the grid itself).
+                'frame_phase': 0.5 / exp.overhead_rate,
                 'seed': exp.seed * 100 + 99,
             },
         ),

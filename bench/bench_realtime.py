@@ -29,7 +29,6 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 import statistics
 import tempfile
@@ -38,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from activesurv_evaluation.timing import critical_compute
+from activesurv_evaluation.timing import critical_compute, published
 
 K = 3
 RUNS = int(os.environ.get('ACTIVESURV_BENCH_RUNS', '3'))
@@ -93,14 +92,13 @@ def breakdown(bag: Path) -> dict[str, float]:
             steps[tj]['frames'].append(t)
         elif m.topic == '/marker_observations':
             # The imager's own clock where the observation says it (frame, publication).
-            got = float(getattr(m.msg, 'frame_received', math.nan))
-            if math.isfinite(got):
+            if (got := published(m.msg, 'frame_received')) is not None:
                 steps[tj]['frames_told'].append(tj + got)
-            told = float(getattr(m.msg, 'published', math.nan))
-            steps[tj]['observations'].append(tj + told if math.isfinite(told) else t)
+            told = published(m.msg)
+            steps[tj]['observations'].append(tj + told if told is not None else t)
         elif m.topic == '/target_estimate':
-            told = float(getattr(m.msg, 'published', math.nan))
-            steps[tj]['estimate'].append(tj + told if math.isfinite(told) else t)
+            told = published(m.msg)
+            steps[tj]['estimate'].append(tj + told if told is not None else t)
             steps[tj]['heard'].append(t)
     rows: dict[str, list[float]] = defaultdict(list)
     for tj, s in steps.items():

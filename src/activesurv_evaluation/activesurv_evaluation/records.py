@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from enum import Enum
 from typing import Any, TypeVar
@@ -14,6 +13,7 @@ from activesurv_common.occlusion import Obstacle, obstacles_from_list, sight_blo
 from activesurv_common.sensor_model import SensorModel
 from activesurv_common.statuses import DemandStatus, ObservationStatus
 from activesurv_evaluation.results import DemandRecord, visibility_from_transforms
+from activesurv_evaluation.timing import published
 from activesurv_recording.run_record import RunRecord
 
 S = TypeVar('S', bound=Enum)
@@ -152,8 +152,8 @@ def demand_record(
     rec.faulty = [str(c) for c in e.cameras_faulty]
     rec.missing = [str(c) for c in e.cameras_missing]
     # As fusion published it (its fine clock); older bags: as the recorder heard it.
-    told = float(getattr(e, 'published', math.nan))
-    rec.latency = told if math.isfinite(told) else t_ns * 1e-9 - tj
+    told = published(e)
+    rec.latency = told if told is not None else t_ns * 1e-9 - tj
     if outcome is not None and outcome.estimated and np.all(np.isfinite(msg_vector(e.position))):
         rec.estimated_position = msg_vector(e.position)
         rec.estimated_normal = msg_vector(e.normal)

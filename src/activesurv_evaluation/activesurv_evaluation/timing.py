@@ -149,9 +149,10 @@ class StepTimes:
         }
 
 
-def published(msg: Any) -> float | None:
-    """A message's own ``published`` (s after its instant), or None (unknown, older bags)."""
-    v = float(getattr(msg, 'published', math.nan))
+def published(msg: Any, field: str = 'published') -> float | None:
+    """A message's own ``published`` (or another of its times after its instant, such as an
+    observation's ``frame_received``), in s; None where unknown (NaN, or older bags)."""
+    v = float(getattr(msg, field, math.nan))
     return v if math.isfinite(v) else None
 
 

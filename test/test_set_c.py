@@ -84,6 +84,11 @@ def test_set_c_two_objects_and_a_post(set_c: tuple[Path, str, set[str], int]) ->
     assert {d['object'] for d in demands} == {o['id'] for o in doc['objects']}
     assert len(demands) >= 10
     assert all(d['occluded'] == [] for d in demands)  # never a blocked camera assigned
+    # The instants sit half a frame period (10 Hz) off the overhead frames (entry + n 2 s
+    # fell on them: the overhead camera and the tracker worked at every instant).
+    for d in demands:
+        off = ((d['t'] - 0.05) / 0.1) % 1.0
+        assert min(off, 1.0 - off) > 0.25, d['t']
     # (When the two pass each other, the far one is hidden from every camera for a demand:
     # no assignment could serve it; docs/multi-object.md.)
     ok = [d for d in demands if d['status'] == 'ok']

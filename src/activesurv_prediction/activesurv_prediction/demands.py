@@ -174,21 +174,26 @@ class DemandBook:
 
     Demand indices run on across objects (each demand has one, for good); object ids are given
     when a track is confirmed (1, 2, ...). Per object, the demand instants are either every
-    ``interval`` seconds from its entry (the first fix of its track), or the predicted instants
-    at which it crosses each of the lines x = X of ``lines_x``. A crossing instant follows the
-    prediction until it is ``freeze`` seconds away, then stays (the dispatcher must know when
-    to trigger). Only instants whose predicted point lies in ``region`` (x_min, x_max, y_min,
-    y_max; None: anywhere) are demanded: where the cameras cannot serve, nothing is promised.
+    ``interval`` seconds from its entry (the first fix of its track) plus ``phase``, or the
+    predicted instants at which it crosses each of the lines x = X of ``lines_x``. A crossing
+    instant follows the prediction until it is ``freeze`` seconds away, then stays (the
+    dispatcher must know when to trigger). Only instants whose predicted point lies in
+    ``region`` (x_min, x_max, y_min, y_max; None: anywhere) are demanded: where the cameras
+    cannot serve, nothing is promised.
     A promise is kept: an instant is first demanded when its predicted point lies ``margin``
     inside the region, and then stays demanded while the point lies in the region, and for
     good from ``freeze`` seconds before it (the cameras are on their way). Without that, an
     object leaving across the region's edge near an instant made the demand come and go with
     the prediction's noise, and the dispatcher sent its cameras back and forth until the
     instant came with them in between; promising up to ``margin`` outside the region instead
-    made demands the cameras could not serve.
+    made demands the cameras could not serve. An entry is an overhead frame's stamp, so with an
+    interval a multiple of the frame period every instant fell on an overhead frame, and at an
+    instant the overhead camera and the tracker worked beside the imaging cameras: a ``phase``
+    of half a frame period keeps them apart.
 
     Raises:
-        PredictionError: for an interval <= 0 with no lines, or bad lines/region.
+        PredictionError: for an interval <= 0 with no lines, bad lines/region, or a phase
+            outside [0, interval).
     """
 
     def __init__(
@@ -198,10 +203,14 @@ class DemandBook:
         region: Sequence[float] | None = None,
         freeze: float = 1.0,
         margin: float = 0.01,
+        phase: float = 0.0,
     ) -> None:
         lines = tuple(float(v) for v in lines_x)
         if not all(math.isfinite(v) for v in lines) or not math.isfinite(interval):
             raise PredictionError('demand interval and lines must be finite')
+        if not (math.isfinite(phase) and phase >= 0.0 and (phase < interval or phase == 0.0)):
+            raise PredictionError(f'demand phase must be in [0, interval), got {phase}')
+        self.phase = float(phase)
         if not lines and not interval > 0.0:
             raise PredictionError('continuous demands need an interval > 0 s or demand lines')
         if region is not None and len(region) != 4:
@@ -260,9 +269,10 @@ class DemandBook:
             return []
         cands: list[tuple[float, tuple[str, float]]] = []
         if self.interval > 0.0:
-            k = max(1, math.floor((now - self.entered) / self.interval) + 1)
+            first = self.entered + self.phase
+            k = max(1, math.floor((now - first) / self.interval) + 1)
             for n in range(k, k + 4 * m):
-                cands.append((self.entered + n * self.interval, ('t', float(n))))
+                cands.append((first + n * self.interval, ('t', float(n))))
         for x in self.lines:
             key = ('x', x)
             t = self._frozen.get(key)
@@ -360,6 +370,7 @@ def demand_source(
     lines_x: Sequence[float],
     region: Sequence[float],
     freeze: float,
+    phase: float = 0.0,
 ) -> tuple[DemandSchedule, ObjectDemands | None]:
     """The predictor's demands from its parameters: the experiment's fixed schedule (explicit
     ``times``, else ``regular`` = first, interval, count), and in ``interval`` or ``lines``
@@ -378,5 +389,6 @@ def demand_source(
         [float(x) for x in lines_x] if mode == 'lines' else (),
         [float(x) for x in region],
         freeze,
+        phase=phase if mode == 'interval' else 0.0,
     )
     return schedule, ObjectDemands(book)

@@ -91,6 +91,7 @@ class MultiTracker:
     region: Sequence[float] | None = None
     freeze: float = 1.0
     at_once: int = 2
+    phase: float = 0.0  # interval mode: s after an entry's grid (DemandBook.phase)
     gate: float = GATE
     near: float = NEAR
     stream_grace: float = 2.0  # s a stalled overhead stream may lag the clock before loss
@@ -207,7 +208,7 @@ class MultiTracker:
     # -- demands ---------------------------------------------------------------------------
     def _book(self, track: Track, now: float) -> DemandBook:
         """The demands of a newly confirmed object, its instants staggered from the others'."""
-        book = DemandBook(self.interval, self.lines_x, self.region, self.freeze)
+        book = DemandBook(self.interval, self.lines_x, self.region, self.freeze, phase=self.phase)
         book.start(self._staggered_entry(track.born, now))
         book.object_id = track.object_id
         return book

@@ -57,6 +57,7 @@ PARAMS = (
         choices=('schedule', 'interval', 'lines'),
     ),
     Param('demand_interval', 2.0, "interval mode: s between an object's demands", above=0.0),
+    Param('demand_phase', 0.0, 'interval mode: s after the entry grid', minimum=0.0),
     Param('demand_lines', [0.25], 'lines mode: x (m) of the lines whose crossings are demands'),
     Param(
         'demand_region',

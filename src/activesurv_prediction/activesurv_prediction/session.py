@@ -59,6 +59,8 @@ class PredictorConfig:
         demand_times: explicit instants (s); empty: ``first_demand`` + n ``service_interval``.
         first_demand, service_interval, demand_count: the regular schedule.
         demand_interval: interval mode: s between an object's demands.
+        demand_phase: interval mode: s after the entry's grid (half an overhead frame period:
+            no instant on an overhead frame).
         demand_lines: lines mode: x (m) of the lines whose crossings are demands.
         demand_region: where continuous demand points may fall.
         demand_freeze: lines mode: s before a crossing when it stops moving.
@@ -82,6 +84,7 @@ class PredictorConfig:
     service_interval: float = 2.0
     demand_count: int = 10
     demand_interval: float = 2.0
+    demand_phase: float = 0.0
     demand_lines: tuple[float, ...] = (0.25,)
     demand_region: tuple[float, float, float, float] = (0.0, 0.5, 0.0, 0.2)
     demand_freeze: float = 1.0
@@ -193,6 +196,7 @@ class PredictionSession:
             list(c.demand_lines),
             list(c.demand_region),
             c.demand_freeze,
+            c.demand_phase,
         )
         self.geometry = TargetGeometry.create(c.side_offset, c.side_normal)
         self.tracker = Tracker(
@@ -219,6 +223,7 @@ class PredictionSession:
                 book.region,
                 book.freeze,
                 c.objects_at_once,
+                phase=book.phase,
             )
         self._last_state = TrackState.NONE
 

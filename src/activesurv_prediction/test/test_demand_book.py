@@ -34,6 +34,18 @@ def test_interval_demands_run_from_the_entry_with_indices_in_time_order() -> Non
     assert min(j for j, _ in book.upcoming(p, 10.5, 3)) > max(j for j, _ in later)
 
 
+def test_a_phase_puts_the_interval_instants_off_the_entry_frames_grid() -> None:
+    p = _moving(0.02)
+    plain, shifted = DemandBook(interval=1.0), DemandBook(interval=1.0, phase=0.05)
+    plain.start(entered=0.5)  # an overhead frame's stamp; frames every 0.1 s
+    shifted.start(entered=0.5)
+    on = [t for _, t in plain.upcoming(p, 3.0, 3)]
+    off = [t for _, t in shifted.upcoming(p, 3.0, 3)]
+    assert on == pytest.approx([3.5, 4.5, 5.5])  # on the frames' grid
+    assert off == pytest.approx([3.55, 4.55, 5.55])  # half a frame period off it
+    assert [t for _, t in shifted.upcoming(p, 3.56, 1)] == pytest.approx([4.55])
+
+
 def test_only_points_in_the_demand_region_are_demanded() -> None:
     p = _moving(0.02)  # at x = 0.16 at t = 3 s, 0.02 m/s
     book = DemandBook(interval=1.0, region=[0.0, 0.215, 0.0, 0.2])  # made 10 mm inside
@@ -83,3 +95,6 @@ def test_bad_books_are_refused() -> None:
         DemandBook()
     with pytest.raises(PredictionError):
         DemandBook(interval=1.0, region=[0.0, 1.0])
+    for phase in (-0.01, 1.0, float('nan')):
+        with pytest.raises(PredictionError, match='phase'):
+            DemandBook(interval=1.0, phase=phase)

@@ -121,6 +121,15 @@ def test_demands_of_objects_at_once_are_staggered_and_indexed_across_objects() -
             assert again[key] == d.index
 
 
+def test_objects_demands_keep_the_phase_off_the_frames_grid() -> None:
+    tracker = MultiTracker(interval=2.0, at_once=2, phase=0.05)
+    run(tracker, [(0.06, 0.5, 30.0, False), (0.14, 0.5, 30.0, True)], 8.0)
+    demands = tracker.horizon(8.0, 4, GEOMETRY, 0.08)
+    assert len({d.object_id for d in demands}) == 2
+    for d in demands:  # entries are fix stamps (every 0.1 s): the instants sit between them
+        assert (d.instant * 10.0) % 1.0 == pytest.approx(0.5, abs=1e-6)
+
+
 def test_bad_fixes_are_refused() -> None:
     tracker = MultiTracker()
     with pytest.raises(PredictionError):

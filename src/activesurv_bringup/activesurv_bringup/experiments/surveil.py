@@ -81,7 +81,7 @@ def surveil_specs(
         preview_rate=opts.preview_rate,
         record=surveil_record(exp, s),
     )
-    return continuous(specs, exp, s)
+    return continuous(specs, exp, s, exp.overhead_rate)
 
 
 def hardware_surveil_specs(
@@ -100,15 +100,28 @@ def hardware_surveil_specs(
         opts.record_frames,
         record=surveil_record(exp, s),
     )
-    return continuous(specs, exp, s)
+    return continuous(specs, exp, s, hw.overhead.frame_rate)
+
+
+def demand_phase(interval: float, overhead_rate: float) -> float:
+    """Half an overhead frame period (s), where it is shorter than the demand interval."""
+    half = 0.5 / overhead_rate if overhead_rate > 0.0 else 0.0
+    return half if half < interval else 0.0
 
 
 TABLES = ('xy_table', 'table_runner')  # the simulated table, or the real table's runner
 
 
-def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> list[NodeSpec]:
+def continuous(
+    specs: list[NodeSpec], exp: Experiment, s: SurveilOptions, overhead_rate: float
+) -> list[NodeSpec]:
     """A run's node specs turned into a session's: bag retention, per-object demands, the
-    table running the object stream, no fusion journal (the run record is the caller's)."""
+    table running the object stream, no fusion journal (the run record is the caller's).
+
+    An object's interval demands come half an overhead frame period (``overhead_rate``, Hz)
+    after its entry's grid: its entry is an overhead frame's stamp, and the instants fell on
+    overhead frames (Set C: the last frame at its imager 6-32 ms after the instant, median
+    latency 22.8 ms; see docs/performance.md)."""
     out = []
     for spec in specs:
         p = dict(spec.parameters)
@@ -123,6 +136,7 @@ def continuous(specs: list[NodeSpec], exp: Experiment, s: SurveilOptions) -> lis
             p.update(
                 demand_mode='lines' if s.demand_at else 'interval',
                 demand_interval=float(s.demand_interval),
+                demand_phase=demand_phase(s.demand_interval, overhead_rate),
                 demand_lines=[float(x) for x in s.demand_at] or [0.25],
                 demand_region=[float(v) for v in DEMAND_REGION],
                 objects_at_once=int(s.objects_at_once),

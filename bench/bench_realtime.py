@@ -18,6 +18,11 @@
   one of at most two runs at that rtf: a shared machine's stall of a fraction of a second
   costs several demands at rtf 4); ``max_rtf_runs`` lists every run's ``ok`` per rtf.
 * ``*_nodes``: the same at rtf 1 with one process per node (``--processes nodes``).
+* ``two_objects_*``: the same figures of Set C (two objects on the table at once and a post,
+  a session of 15 demands; ``TWO_OBJECT_RUNS`` runs, seed 7, the rig told the truth),
+  ``two_objects_latency_to_compute`` its ratio (issue 35: the same goal as one object).
+* ``one_camera_*``: Set A fast at rtf 1 with k = 1 (one imaging camera per demand instead of
+  three; ``runs`` runs): the graph's own waits when the imaging does not share two cores.
 * ``breakdown_ms``: where the latency goes, read off the first run's bag, medians over the
   demands, from the demand instant to: the table's state at the instant, the stage states at
   the instant (both as the recorder heard them, on the interpolated simulated clock), the
@@ -31,27 +36,38 @@ from __future__ import annotations
 import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from activesurv_evaluation.timing import critical_compute, published
 
 K = 3
 RUNS = int(os.environ.get('ACTIVESURV_BENCH_RUNS', '3'))
+TWO_OBJECT_RUNS = 2
+ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
 
 def _run(
-    rtf: float, tmp: Path, name: str, processes: str = 'containers'
+    rtf: float, tmp: Path, name: str, processes: str = 'containers', k: int | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    from activesurv_bringup.experiments.experiment import load_experiment
+    from activesurv_bringup.experiments.experiment import config_path, load_experiment
     from activesurv_bringup.experiments.graph import run_graph
     from activesurv_bringup.experiments.options import RunOptions
     from activesurv_evaluation.runs import load_run
 
-    exp = load_experiment('A', 'fast', 7)
+    config = None
+    if k is not None:  # the packaged experiments with another k
+        doc = yaml.safe_load(Path(config_path()).read_text())
+        doc['k'] = k
+        config = tmp / f'experiments_k{k}.yaml'
+        config.write_text(yaml.safe_dump(doc))
+    exp = load_experiment('A', 'fast', 7, config_file=config)
     run_graph(exp, tmp / name, RunOptions(rtf=rtf, processes=processes), progress=lambda _: None)
     return load_run(tmp / name), json.loads((tmp / name / 'cpu.json').read_text())
 
@@ -127,11 +143,29 @@ def breakdown(bag: Path) -> dict[str, float]:
     return {k: round(statistics.median(rows[k]), 1) for k in order if rows.get(k)}
 
 
-def _series(tmp: Path, processes: str, runs: int) -> dict[str, Any]:
+def _set_c(tmp: Path, name: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """One Set C run (two objects at once and a post) at rtf 1: results and cpu.json."""
+    out = tmp / name
+    subprocess.run(
+        [ACTIVESURV, 'experiment', '--set', 'C', '--system', 'fast', '--seed', '7']
+        + ['--calibration', 'truth', '--out', str(out)],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.STDOUT,
+        timeout=900,
+    )
+    doc = json.loads((out / 'results.json').read_text())
+    return doc, json.loads((out / 'cpu.json').read_text())
+
+
+def _series(
+    tmp: Path, processes: str, runs: int, k: int | None = None, two_objects: bool = False
+) -> dict[str, Any]:
     oks, lat, heard, cores, first_cpu, compute = [], [], [], [], None, []
     n = 0
     for r in range(runs):
-        doc, cpu = _run(1.0, tmp, f'{processes}{r}', processes)
+        name = f'{processes}{r}' + (f'_k{k}' if k else '') + ('_C' if two_objects else '')
+        doc, cpu = _set_c(tmp, name) if two_objects else _run(1.0, tmp, name, processes, k)
         n = len(doc['demands'])
         oks.append(_ok(doc))
         lat += [d['latency'] for d in doc['demands'] if d['latency'] is not None]
@@ -178,6 +212,13 @@ def run() -> dict[str, object]:
         nodes.pop('all_ok')
         for k in ('ok', 'latency_ms', 'latency_p90_ms', 'cpu_cores'):
             out[f'{k}_nodes'] = nodes[k]
+        shown = ('ok', 'latency_ms', 'latency_p90_ms', 'compute_ms', 'latency_to_compute')
+        two = _series(tmp, 'containers', TWO_OBJECT_RUNS, two_objects=True)
+        for k in (*shown, 'latency_p90_to_compute', 'cpu_cores'):
+            out[f'two_objects_{k}'] = two[k]
+        one = _series(tmp, 'containers', RUNS, k=1)
+        for k in shown:
+            out[f'one_camera_{k}'] = one[k]
         best = 1.0 if all_ok else 0.0
         attempts: dict[str, list[str]] = {}
         if best:

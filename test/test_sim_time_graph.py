@@ -124,3 +124,41 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
     for t in instants:
         near = [s for s in stamps if abs(s - t) < 0.25 / rate]
         assert near == [pytest.approx(t, abs=1e-6)], (t, near)
+
+
+@pytest.mark.graph
+def test_xy_table_keeps_its_states_on_a_phased_grid(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """With ``publish_phase`` the periodic states (and ticks) fall at phase + n / rate, one per
+    period, whatever the timer's own phase (the graph puts them on the overhead camera's
+    frames, half a period off the demand instants)."""
+    from activesurv_common.ros.conversions import time_to_sec
+    from activesurv_interfaces.msg import ObjectState
+    from activesurv_launch.launcher import Launcher, NodeSpec
+
+    rate, phase = 10.0, 0.05
+    specs = [
+        NodeSpec(
+            'xy_table',
+            'activesurv_sim.xy_table_node',
+            parameters={'publish_rate': rate, 'publish_phase': phase, 'wait_for_subscribers': 1},
+        )
+    ]
+    peer = rclpy_context.create_node('phase_peer')
+    stamps: list[float] = []
+    peer.create_subscription(
+        ObjectState,
+        topics.OBJECT_STATE,
+        lambda m: stamps.append(time_to_sec(m.header.stamp)),
+        qos.STATE,
+    )
+    try:
+        with Launcher(specs, workdir=tmp_path) as launcher:
+            assert spin_until([peer], lambda: launcher.check() is None and len(stamps) > 15, 30.0)
+    finally:
+        peer.destroy_node()
+    periods = [(s - phase) * rate for s in stamps[1:]]  # the first: as time starts
+    # Each on its grid point (late by the timer's wake-up at most a quarter period), one a period.
+    assert all(-0.25 <= p - round(p) < 0.25 for p in periods), stamps
+    assert len({round(p) for p in periods}) == len(periods), stamps

@@ -2,7 +2,8 @@
 
 Publishes:
     object_state (activesurv_interfaces/ObjectState): ground truth (top and side markers), for
-        the simulated cameras and for evaluation; at ``publish_rate`` (simulated Hz).
+        the simulated cameras and for evaluation; at ``publish_rate`` (simulated Hz), with a
+        ``publish_phase`` on the grid ``phase + n / rate`` (the timer runs twice as fast).
     /clock (rosgraph_msgs/Clock) when ``publish_clock`` is true: simulated time starts at 0 and
         runs ``real_time_factor`` times as fast as the wall clock (slower when below 1).
 Subscribes:
@@ -13,11 +14,7 @@ Subscribes:
         timers see the instant (a regular tick that close is skipped). On the request it also
         publishes ``sim/planned_object_state``, the state its program will reach then (the
         simulated cameras render ahead with it; see ``sim_camera``).
-Parameters: path_type (parabola, line, csv, or stream: objects one after another, see
-    ``activesurv_sim.stream``), path_points, csv_file, speed, acceleration, start_time (s of
-    simulated time before the object starts; for a stream, the first entry), stream_seed,
-    arrival_interval, path_kinds, top_height, side_offset, side_normal, publish_rate,
-    publish_clock, real_time_factor, frame_id.
+Parameters: see ``config/xy_table.yaml`` (path_type stream: ``activesurv_sim.stream``).
 """
 
 from __future__ import annotations
@@ -31,6 +28,7 @@ from rclpy.node import Node
 from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
 
+from activesurv_common.pacing import PhaseLock
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
@@ -60,6 +58,7 @@ PARAMS = (
     Param('side_offset', [0.0, -0.03, -0.03], 'side marker centre minus top marker centre (m)'),
     Param('side_normal', [0.0, -1.0, 0.0], 'side marker normal (world)'),
     Param('publish_rate', 50.0, 'object_state rate (Hz)', above=0.0),
+    Param('publish_phase', 0.0, 's: states at phase + n / rate (0: as the timer ticks)'),
     Param('publish_clock', True, 'own the simulated /clock'),
     Param('real_time_factor', 1.0, 'simulated s per wall s', above=0.0),
     Param('frame_id', 'world', 'frame of object_state'),
@@ -87,10 +86,8 @@ class XYTableNode(Node):
         self.frame_id = str(g('frame_id').value)
         self._wall0: float | None = None  # simulated time starts when everyone listens
         self._created = time.monotonic()
-        self._wait_for = {
-            'object_state': int(g('wait_for_subscribers').value),
-            '/clock': int(g('wait_for_clock_subscribers').value),
-        }
+        wait = (int(g('wait_for_subscribers').value), int(g('wait_for_clock_subscribers').value))
+        self._wait_for = dict(zip(('object_state', '/clock'), wait, strict=True))
         self._wait_timeout = float(g('wait_timeout').value)
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
@@ -99,18 +96,18 @@ class XYTableNode(Node):
         self._last_clock = -1.0
         self._triggers: dict[float, Timer | None] = {}
         self._steady = RclpyClock(clock_type=ClockType.STEADY_TIME)
-        self._planned_pub = self.create_publisher(
-            ObjectStateMsg, topics.PLANNED_OBJECT_STATE, qos.EVENTS
-        )
+        planned = topics.PLANNED_OBJECT_STATE
+        self._planned_pub = self.create_publisher(ObjectStateMsg, planned, qos.EVENTS)
         if bool(g('demand_states').value):
             self.create_subscription(
                 CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
             )
         self._period = 1.0 / float(g('publish_rate').value)
+        phase = float(g('publish_phase').value)
+        self._grid = PhaseLock(1.0 / self._period, phase) if phase else None
+        step = self._period / (2.0 if self._grid else 1.0)  # on a grid: a tick near each point
         # With its own clock the node steps on the wall clock; otherwise on its node clock.
-        self.create_timer(
-            self._period / self.rtf if self.publish_clock else self._period, self._on_tick
-        )
+        self.create_timer(step / self.rtf if self.publish_clock else step, self._on_tick)
         what = (
             f'path of {self.table.path.duration:.1f} s from t={self.table.start_time:.1f} s'
             if isinstance(self.table, XYTable)
@@ -147,7 +144,10 @@ class XYTableNode(Node):
             if self._clock_pub is not None:
                 self._clock_pub.publish(Clock(clock=sec_to_time(0.0)))
             return
-        if not near_instant(t := self.sim_time(), self._triggers, self._period):
+        t = self.sim_time()
+        if self._grid is not None and not self._grid.ready(t):
+            return
+        if not near_instant(t, self._triggers, self._period):
             self._publish_at(t)
 
     def _publish_at(self, t: float) -> None:

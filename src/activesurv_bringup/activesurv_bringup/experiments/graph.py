@@ -135,9 +135,12 @@ def graph_specs(
         ]
     table: dict[str, Any] = {
         **exp.table_config().to_parameters(),
-        # 20 Hz of /clock and object states: the overhead camera runs at 10 Hz, every demand
-        # instant gets a tick and a state of its own, and each tick wakes every process.
-        'publish_rate': 20.0,
+        # /clock and object states at the overhead camera's rate and on its frames (half a
+        # period off the instants' grid): every demand instant gets a tick and a state of its
+        # own, and each tick wakes every process (at 20 Hz a run took 0.04 cores more;
+        # docs/performance.md).
+        'publish_rate': exp.overhead_rate,
+        'publish_phase': 0.5 / exp.overhead_rate,
         'publish_clock': True,
         'real_time_factor': float(rtf),
         **truth,

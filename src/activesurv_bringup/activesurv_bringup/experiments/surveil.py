@@ -100,7 +100,9 @@ def hardware_surveil_specs(
         opts.record_frames,
         record=surveil_record(exp, s),
     )
-    return continuous(specs, exp, s, hw.overhead.frame_rate)
+    # No demand phase on a rig: in the lab (30 Hz cameras, two 120 s sessions each) instants
+    # half an overhead period off its frames were answered later, 140-145 ms against 125-127.
+    return continuous(specs, exp, s, 0.0)
 
 
 def demand_phase(interval: float, overhead_rate: float) -> float:
@@ -118,10 +120,10 @@ def continuous(
     """A run's node specs turned into a session's: bag retention, per-object demands, the
     table running the object stream, no fusion journal (the run record is the caller's).
 
-    An object's interval demands come half an overhead frame period (``overhead_rate``, Hz)
-    after its entry's grid: its entry is an overhead frame's stamp, and the instants fell on
-    overhead frames (Set C: the last frame at its imager 6-32 ms after the instant, median
-    latency 22.8 ms; see docs/performance.md)."""
+    An object's interval demands come half an overhead frame period (``overhead_rate``, Hz;
+    0: none) after its entry's grid: its entry is an overhead frame's stamp, and the instants
+    fell on overhead frames (Set C: the last frame at its imager 6-32 ms after the instant,
+    median latency 22.8 ms; see docs/performance.md)."""
     out = []
     for spec in specs:
         p = dict(spec.parameters)

@@ -76,6 +76,21 @@ def test_xy_table_and_sim_stage_on_simulated_time(
     assert objects[-1].top_marker.x > first.x
 
 
+def _state_stamps(peer: Any) -> list[float]:
+    """The stamps of the object states ``peer`` hears from now on (filled as it spins)."""
+    from activesurv_common.ros.conversions import time_to_sec
+    from activesurv_interfaces.msg import ObjectState
+
+    stamps: list[float] = []
+    peer.create_subscription(
+        ObjectState,
+        topics.OBJECT_STATE,
+        lambda m: stamps.append(time_to_sec(m.header.stamp)),
+        qos.STATE,
+    )
+    return stamps
+
+
 @pytest.mark.graph
 def test_xy_table_publishes_one_state_at_a_demand_instant(
     tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
@@ -83,8 +98,8 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
     """A demand instant gets its own state and tick; the periodic state that would fall
     within a quarter period of it is skipped (every process would wake twice just when the
     cameras image)."""
-    from activesurv_common.ros.conversions import sec_to_time, time_to_sec
-    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+    from activesurv_common.ros.conversions import sec_to_time
+    from activesurv_interfaces.msg import CaptureRequest
     from activesurv_launch.launcher import Launcher, NodeSpec
 
     rate = 20.0
@@ -96,13 +111,7 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
         )
     ]
     peer = rclpy_context.create_node('instant_peer')
-    stamps: list[float] = []
-    peer.create_subscription(
-        ObjectState,
-        topics.OBJECT_STATE,
-        lambda m: stamps.append(time_to_sec(m.header.stamp)),
-        qos.STATE,
-    )
+    stamps = _state_stamps(peer)
     requests = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
     instants: list[float] = []
     try:
@@ -133,8 +142,6 @@ def test_xy_table_keeps_its_states_on_a_phased_grid(
     """With ``publish_phase`` the periodic states (and ticks) fall at phase + n / rate, one per
     period, whatever the timer's own phase (the graph puts them on the overhead camera's
     frames, half a period off the demand instants)."""
-    from activesurv_common.ros.conversions import time_to_sec
-    from activesurv_interfaces.msg import ObjectState
     from activesurv_launch.launcher import Launcher, NodeSpec
 
     rate, phase = 10.0, 0.05
@@ -146,13 +153,7 @@ def test_xy_table_keeps_its_states_on_a_phased_grid(
         )
     ]
     peer = rclpy_context.create_node('phase_peer')
-    stamps: list[float] = []
-    peer.create_subscription(
-        ObjectState,
-        topics.OBJECT_STATE,
-        lambda m: stamps.append(time_to_sec(m.header.stamp)),
-        qos.STATE,
-    )
+    stamps = _state_stamps(peer)
     try:
         with Launcher(specs, workdir=tmp_path) as launcher:
             assert spin_until([peer], lambda: launcher.check() is None and len(stamps) > 15, 30.0)

@@ -91,13 +91,28 @@ def _state_stamps(peer: Any) -> list[float]:
     return stamps
 
 
+def _clock_stamps(peer: Any) -> list[float]:
+    """The /clock ticks ``peer`` hears from now on (filled as it spins)."""
+    from rosgraph_msgs.msg import Clock
+
+    from activesurv_common.ros.conversions import time_to_sec
+
+    ticks: list[float] = []
+    peer.create_subscription(
+        Clock, topics.CLOCK, lambda m: ticks.append(time_to_sec(m.clock)), qos.CLOCK
+    )
+    return ticks
+
+
 @pytest.mark.graph
+@pytest.mark.parametrize('instant_ticks', [True, False])
 def test_xy_table_publishes_one_state_at_a_demand_instant(
-    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool], instant_ticks: bool
 ) -> None:
-    """A demand instant gets its own state and tick; the periodic state that would fall
-    within a quarter period of it is skipped (every process would wake twice just when the
-    cameras image)."""
+    """A demand instant gets its own state (and, with ``instant_ticks``, its tick); the
+    periodic state that would fall within a quarter period of it is skipped (every process
+    would wake twice just when the cameras image). Without instant ticks the periodic tick
+    is kept: simulated time never stands still for two periods."""
     from activesurv_common.ros.conversions import sec_to_time
     from activesurv_interfaces.msg import CaptureRequest
     from activesurv_launch.launcher import Launcher, NodeSpec
@@ -107,11 +122,16 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
         NodeSpec(
             'xy_table',
             'activesurv_sim.xy_table_node',
-            parameters={'publish_rate': rate, 'wait_for_subscribers': 1},
+            parameters={
+                'publish_rate': rate,
+                'wait_for_subscribers': 1,
+                'instant_ticks': instant_ticks,
+            },
         )
     ]
     peer = rclpy_context.create_node('instant_peer')
     stamps = _state_stamps(peer)
+    ticks = _clock_stamps(peer)
     requests = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
     instants: list[float] = []
     try:
@@ -133,6 +153,11 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
     for t in instants:
         near = [s for s in stamps if abs(s - t) < 0.25 / rate]
         assert near == [pytest.approx(t, abs=1e-6)], (t, near)
+        near_ticks = [s for s in ticks if abs(s - t) < 0.25 / rate]
+        assert len(near_ticks) == 1, (t, near_ticks)
+        assert (abs(near_ticks[0] - t) < 1e-6) == instant_ticks, (t, near_ticks)
+    gaps = [b - a for a, b in zip(ticks, ticks[1:], strict=False)]
+    assert max(gaps) < 1.5 / rate, max(gaps)
 
 
 @pytest.mark.graph

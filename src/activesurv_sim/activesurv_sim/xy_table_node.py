@@ -10,8 +10,10 @@ Subscribes:
     capture_request (activesurv_interfaces/CaptureRequest): at each demand instant the table
         publishes the object's state stamped exactly then (the paper's motion controller
         records the target's exact pose at the demand instants), and, when it owns /clock, a
-        clock tick at exactly that instant: the simulated cameras render, and every node's
-        timers see the instant (a regular tick that close is skipped). On the request it also
+        clock tick at exactly that instant: every node's timers see the instant (a regular
+        state and tick that close are skipped). With ``instant_ticks`` false the instant gets
+        its state only (the simulated cameras image on it; no process wakes for a tick then,
+        and a regular tick that close is kept). On the request it also
         publishes ``sim/planned_object_state``, the state its program will reach then (the
         simulated cameras render ahead with it; see ``sim_camera``).
 Parameters: see ``config/xy_table.yaml`` (path_type stream: ``activesurv_sim.stream``).
@@ -32,46 +34,16 @@ from activesurv_common.pacing import PhaseLock
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
-from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
-from activesurv_sim.stream import PATH_KINDS, table_from_parameters
+from activesurv_sim.stream import table_from_parameters
+from activesurv_sim.xy_table_params import PARAMS
 from activesurv_sim.xytable import XYTable, near_instant, start_shortfall
 from activesurv_stages.errors import StageError
 
-PARAMS = (
-    Param('path_type', 'parabola', 'object path', choices=('parabola', 'line', 'csv', 'stream')),
-    Param(
-        'path_points',
-        [0.17, 0.06, 0.25, 0.12, 0.33, 0.06],
-        'line: x0, y0, x1, y1; parabola: start, apex, end (m)',
-    ),
-    Param('csv_file', '', 't,x,y CSV for path_type csv'),
-    Param('enters_at_start', False, 'the object is out of the workspace until start_time'),
-    Param('rig_file', '', "rig YAML: the table's true position errors; empty: exact"),
-    Param('speed', 0.02, 'path speed (m/s)', above=0.0),
-    Param('acceleration', 0.02, 'path acceleration (m/s^2)', above=0.0),
-    Param('start_time', 1.0, 's before the object starts', minimum=0.0),
-    Param('top_height', 0.08, 'top marker plane z (m)'),
-    Param('side_offset', [0.0, -0.03, -0.03], 'side marker centre minus top marker centre (m)'),
-    Param('side_normal', [0.0, -1.0, 0.0], 'side marker normal (world)'),
-    Param('publish_rate', 50.0, 'object_state rate (Hz)', above=0.0),
-    Param('publish_phase', 0.0, 's: states at phase + n / rate (0: as the timer ticks)'),
-    Param('publish_clock', True, 'own the simulated /clock'),
-    Param('real_time_factor', 1.0, 'simulated s per wall s', above=0.0),
-    Param('frame_id', 'world', 'frame of object_state'),
-    Param('wait_for_subscribers', 0, 'hold time at 0 until object_state has this many', minimum=0),
-    Param('wait_for_clock_subscribers', 0, 'and until /clock has this many', minimum=0),
-    Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
-    Param('stream_seed', 0, "stream: seed of the objects' paths"),
-    Param('arrival_interval', 30.0, "stream: s from one object's entry to the next", above=0.0),
-    Param('path_kinds', list(PATH_KINDS), 'stream: path kinds to draw from'),
-    Param('objects_at_once', 1, 'stream: objects on the table at once (lanes)', minimum=1),
-    Param('stream_script', '', 'stream: JSON list of scripted objects instead of drawn ones'),
-    Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
-)
 
 
 class XYTableNode(Node):
@@ -102,6 +74,7 @@ class XYTableNode(Node):
             self.create_subscription(
                 CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
             )
+        self._instant_ticks = bool(g('instant_ticks').value)
         self._period = 1.0 / float(g('publish_rate').value)
         phase = float(g('publish_phase').value)
         self._grid = PhaseLock(1.0 / self._period, phase) if phase else None
@@ -147,14 +120,15 @@ class XYTableNode(Node):
         t = self.sim_time()
         if self._grid is not None and not self._grid.ready(t):
             return
-        if not near_instant(t, self._triggers, self._period):
-            self._publish_at(t)
+        near = near_instant(t, self._triggers, self._period)
+        if not near or not self._instant_ticks:
+            self._publish_at(t, states=not near)
 
-    def _publish_at(self, t: float) -> None:
+    def _publish_at(self, t: float, states: bool = True, tick: bool = True) -> None:
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)
-        for msg in self._states(t, stamp):
+        for msg in self._states(t, stamp) if states else []:
             self._pub.publish(msg)
-        if self._clock_pub is not None and t > self._last_clock:
+        if tick and self._clock_pub is not None and t > self._last_clock:
             self._clock_pub.publish(Clock(clock=stamp))  # simulated time never runs back
             self._last_clock = t
 
@@ -186,7 +160,7 @@ class XYTableNode(Node):
         if timer is not None:
             timer.cancel()
             self.destroy_timer(timer)
-        self._publish_at(t)
+        self._publish_at(t, tick=self._instant_ticks)
         # Keep the fired instants a while (a request may come again), not for hours.
         self._triggers = {k: v for k, v in self._triggers.items() if k > t - 60.0}
         self._triggers[t] = None

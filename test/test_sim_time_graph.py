@@ -3,6 +3,7 @@ states with it, and the object moves along its path from its start time (two nod
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -156,7 +157,7 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
         near_ticks = [s for s in ticks if abs(s - t) < 0.25 / rate]
         assert len(near_ticks) == 1, (t, near_ticks)
         assert (abs(near_ticks[0] - t) < 1e-6) == instant_ticks, (t, near_ticks)
-    gaps = [b - a for a, b in zip(ticks, ticks[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(ticks)]
     assert max(gaps) < 1.5 / rate, max(gaps)
 
 

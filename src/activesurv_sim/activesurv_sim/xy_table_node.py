@@ -45,7 +45,6 @@ from activesurv_sim.xytable import XYTable, near_instant, start_shortfall
 from activesurv_stages.errors import StageError
 
 
-
 class XYTableNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('xy_table', **kwargs)

@@ -26,7 +26,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import ImageMarker
 
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
     image_to_gray,
@@ -70,7 +70,6 @@ class ImagerNode(Node):
         self._fine = FineClock(self.get_clock())
         service = str(v['trigger_service'])
         self._trigger = SoftwareTrigger(self, service, v['trigger_lead']) if service else None
-
         self._obs_pub = self.create_publisher(
             MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
         )
@@ -92,7 +91,8 @@ class ImagerNode(Node):
         )
         # Drivers publish best effort; our simulated cameras and replays reliably (none lost).
         image_qos = qos.SENSOR_RELIABLE if v['reliable_images'] else qos.SENSOR
-        self.create_subscription(Image, topics.image(self.camera_id), self._on_image, image_qos)
+        image = topics.image(self.camera_id)  # from a camera in its container: in process
+        local_topics.subscription(self, Image, image, self._on_image, image_qos)
         info = topics.camera_info(self.camera_id)
         self.create_subscription(CameraInfo, info, self._on_info, qos.SENSOR)
         if self.core.joint_names:

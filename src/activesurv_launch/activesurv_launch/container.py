@@ -6,7 +6,8 @@ remappings and parameters) and spins them on one executor (rclpy's ``EventsExecu
 :func:`activesurv_common.ros.node.make_executor`). One Python process per group
 of nodes instead of one per node: the interpreter, the DDS participant and the /clock
 subscription are paid once, not 19 times, and messages between the members stay inside the
-process (Fast DDS's intra-process delivery). Every node stays runnable alone with its console
+process (:mod:`activesurv_common.ros.local_topics`: a camera's frames reach its imager as a
+Python call, before they go over DDS). Every node stays runnable alone with its console
 script; graph mode groups them into containers per host (see
 :mod:`activesurv_bringup.experiments.graph`).
 
@@ -36,7 +37,7 @@ import yaml
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
-from activesurv_common.ros import fast_logging
+from activesurv_common.ros import fast_logging, local_topics
 from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
 from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
@@ -80,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = StopRequest()  # a stop asked while the members start ends the container once started
     rclpy.init(args=args[1:], signal_handler_options=SignalHandlerOptions.NO)
     fast_logging.install()
+    local_topics.enable()  # one thread spins all members: in-process delivery is safe
     nodes: list[Any] = []
     for m in members:
         try:

@@ -23,7 +23,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from activesurv_common.errors import CommonError
 from activesurv_common.pacing import Pacer, PhaseLock
-from activesurv_common.ros import qos, topics
+from activesurv_common.ros import local_topics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
     camera_info_from_model,
@@ -59,9 +59,9 @@ class SimCameraNode(Node):
         self.sim.warm_up()
         self.info_model = published_model({q.name: g(q.name).value for q in PARAMS}, self.sim)
         self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
-        self._image_pub = self.create_publisher(
-            Image, topics.image(self.camera_id), qos.SENSOR_RELIABLE
-        )
+        # Its imager in the same container images a frame before the frame goes over DDS.
+        image = topics.image(self.camera_id)
+        self._image_pub = local_topics.publisher(self, Image, image, qos.SENSOR_RELIABLE)
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
         )

@@ -1,0 +1,87 @@
+"""In-process delivery between the nodes of one container (``local_topics``)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from activesurv_common.ros import local_topics, qos
+
+
+def _image(sec: int, frame: str = 'cam1_optical_frame') -> Any:
+    from sensor_msgs.msg import Image
+
+    msg = Image()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, 250_000_000
+    msg.header.frame_id = frame
+    msg.height, msg.width, msg.step, msg.encoding = 2, 3, 3, 'mono8'
+    msg.data = bytes(range(6))
+    return msg
+
+
+def test_a_serialized_header_is_read_as_the_message_has_it() -> None:
+    from rclpy.serialization import serialize_message
+
+    msg = _image(12)
+    raw = serialize_message(msg)
+    assert local_topics.raw_header_key(raw) == local_topics.header_key(msg)
+    assert local_topics.header_key(msg) == (12, 250_000_000, 'cam1_optical_frame')
+    assert local_topics.raw_header_key(raw[:10]) is None  # too short: handled as usual
+    assert local_topics.raw_header_key(raw[:4] + bytes(12)) is None  # no frame id
+
+
+@pytest.fixture
+def enabled() -> Iterator[None]:
+    local_topics.enable()
+    try:
+        yield
+    finally:
+        local_topics.enable(False)
+
+
+def test_a_container_hands_a_message_over_in_process_and_once(
+    rclpy_context: Any, spin_until: Callable[..., bool], enabled: None
+) -> None:
+    """The subscriber gets the publisher's own object at once (before it goes over DDS), not
+    the DDS copy again; a message of another publisher (not in process) still arrives."""
+    from sensor_msgs.msg import Image
+
+    camera = rclpy_context.create_node('local_camera')
+    imager = rclpy_context.create_node('local_imager')
+    other = rclpy_context.create_node('local_other')
+    got: list[Any] = []
+    try:
+        local_topics.subscription(imager, Image, '/lt/image_raw', got.append, qos.SENSOR_RELIABLE)
+        pub = local_topics.publisher(camera, Image, '/lt/image_raw', qos.SENSOR_RELIABLE)
+        remote = other.create_publisher(Image, '/lt/image_raw', qos.SENSOR_RELIABLE)
+        assert spin_until([camera, imager, other], lambda: pub.get_subscription_count() >= 1)
+        first = _image(1)
+        pub.publish(first)
+        assert got == [first]
+        assert got[0] is first
+        remote.publish(_image(2))
+        assert spin_until([camera, imager, other], lambda: len(got) >= 2)
+        end = time.monotonic() + 0.5  # the first one's DDS copy has come by now: dropped
+        spin_until([camera, imager, other], lambda: time.monotonic() > end, 2.0)
+        assert [m.header.stamp.sec for m in got] == [1, 2]
+    finally:
+        for node in (camera, imager, other):
+            node.destroy_node()
+
+
+def test_without_a_container_they_are_plain_rclpy(rclpy_context: Any) -> None:
+    from sensor_msgs.msg import Image
+
+    node = rclpy_context.create_node('plain_node')
+    try:
+        pub = local_topics.publisher(node, Image, '/lt/plain', qos.SENSOR_RELIABLE)
+        assert not isinstance(pub, local_topics.LocalPublisher)
+        got: list[Any] = []
+        local_topics.subscription(node, Image, '/lt/plain', got.append, qos.SENSOR_RELIABLE)
+        pub.publish(_image(3))
+        assert got == []  # only over DDS, on a spin
+    finally:
+        node.destroy_node()

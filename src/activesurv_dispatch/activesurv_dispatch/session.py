@@ -136,12 +136,24 @@ class Dispatcher:
             self.counts['bad_joint_states'] += 1
             return Outputs()
         self.joints[camera_id] = v
+        self._resumed('stage state', self.joint_stamp, now)
         self.joint_stamp[camera_id] = now
         return self._check_alive(now) if camera_id in self.down else Outputs()
 
     def on_beat(self, camera_id: str, now: float) -> None:
         """The imager of ``camera_id`` beat at ``now``."""
+        self._resumed('imager heartbeat', self.beat_stamp, now)
         self.beat_stamp[camera_id] = now
+
+    def _resumed(self, signal: str, stamps: dict[str, float], now: float) -> None:
+        """One camera's ``signal`` heard after every live camera's was silent for longer than
+        ``camera_timeout``, and no check saw the silence: this process stalled (at start-up, a
+        busy core: 0.5 s in one run) and the others' messages are queued behind this one. The
+        stall ends now: they get ``camera_timeout`` to be heard before any is judged."""
+        ages = [now - t for c, t in stamps.items() if c not in self.down]
+        if len(ages) > 1 and min(ages) > self.config.camera_timeout and signal not in self._stalls:
+            self._stall_over[signal] = now
+            self.counts['stalls'] += 1
 
     def on_stage_fault(self, camera_id: str, fault: str, now: float) -> Outputs:
         """What the stage controller of ``camera_id`` reports: a fault (a stall, the controller

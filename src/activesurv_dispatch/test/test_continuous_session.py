@@ -74,12 +74,12 @@ def test_every_stage_silent_at_once_is_a_stall_not_every_camera_dead() -> None:
     assert not [e for e in out.events if 'dispatching without it' in e[1]]
     # ... but one silent while the others speak is dropped, stall or not (once the others
     # had camera_timeout to be heard after the stall),
-    for t in (1.0, 1.55):
+    for t in (1.0, 1.3, 1.55):
         for c, q in away.items():
             if c != 'cam2':
                 d.on_joints(c, q, t)
         d.tick(t)
-        assert set(d.down) == ({'cam2'} if t > 1.0 else set())
+        assert set(d.down) == ({'cam2'} if t > 1.5 else set())
     # and a silence of all of them, however long, is a stall: nobody else is dropped.
     out = d.tick(2.6)
     assert set(d.down) == {'cam2'}
@@ -89,19 +89,43 @@ def test_every_stage_silent_at_once_is_a_stall_not_every_camera_dead() -> None:
     d.tick(2.75)
     assert set(d.down) == {'cam2'}
     # ... and one still silent after that is dropped.
-    for c in ('cam1', 'cam3'):
-        d.on_joints(c, away[c], 3.3)
+    for t in (3.0, 3.3):
+        for c in ('cam1', 'cam3'):
+            d.on_joints(c, away[c], t)
     d.tick(3.3)
     assert set(d.down) == {'cam2', 'cam4'}
+
+
+def test_a_stall_no_check_saw_ends_with_the_others_still_queued() -> None:
+    """The process stalls between two checks (start-up): when it resumes, one camera's state
+    comes before the check and the others' after it; none of them is dropped for it."""
+    d, away = _session()
+    d.tick(0.05)
+    d.on_joints('cam2', away['cam2'], 0.6)  # the first message after a 0.55 s stall ...
+    d.tick(0.6)  # ... then the check, before the others' queued states
+    assert not d.down
+    assert d.counts['stalls'] == 1
+    for c, q in away.items():
+        d.on_joints(c, q, 0.61)
+    d.tick(0.65)
+    assert not d.down
+    # A camera still silent camera_timeout after the stall ended is dropped, as ever.
+    for t in (0.9, 1.2):
+        for c, q in away.items():
+            if c != 'cam4':
+                d.on_joints(c, q, t)
+    d.tick(1.2)
+    assert set(d.down) == {'cam4'}
 
 
 def test_a_stage_stall_does_not_hide_an_imager_that_died() -> None:
     d, away = _session()
     for c in away:
         d.on_beat(c, 0.0)
-    for c in away:  # every imager beats on but cam1's (killed at 0.1 s) ...
-        if c != 'cam1':
-            d.on_beat(c, 0.55)
+    for t in (0.3, 0.55):  # every imager beats on but cam1's (killed at 0.1 s) ...
+        for c in away:
+            if c != 'cam1':
+                d.on_beat(c, t)
     # ... while every stage state is 0.6 s old (the stages' process busy): a stall of the
     # stages, which drops none of them, but cam1's imager is silent alone: it is dropped.
     d.tick(0.6)

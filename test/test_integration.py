@@ -68,6 +68,24 @@ def test_results_json_contract(graph_run: Path) -> None:
     assert all(d['orientation_error'] < math.radians(1.0) for d in estimated)
 
 
+def test_the_latency_budget_is_on_one_clock(graph_run: Path) -> None:
+    """Every step of a demand's budget is read on the simulated clock's owner's own mapping
+    (``/sim/clock_origin``), not on each process's fit of its ticks: a frame comes after the
+    instant and before its observation, an observation before the estimate, and the recorder
+    hears a message after it was published."""
+    doc = json.loads((graph_run / 'results.json').read_text())
+    timed = [d['timing'] for d in doc['demands'] if d['status'] == 'ok']
+    assert len(timed) >= 9
+    for t in timed:
+        for cam, frame in t['frames'].items():
+            observed = t['observations'].get(cam)
+            if frame is None or observed is None:
+                continue  # a camera that did not answer
+            assert 0.0 < frame < observed <= t['estimate'], t
+            assert t['heard']['observations'][cam] >= observed, t
+        assert t['heard']['estimate'] >= t['estimate'], t
+
+
 def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:
     bag = graph_run / 'bag'
     assert (bag / 'metadata.yaml').exists()

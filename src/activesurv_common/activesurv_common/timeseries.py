@@ -127,6 +127,8 @@ class ClockEstimate:
     seconds past the last tick (a paused clock stays paused) and never backwards. A clock
     held (the same time ticked again: paused, or not started yet) or a tick heard
     ``max_late`` wall seconds behind the fit (a pause or a restart) starts the fit over.
+    On one host a fit is not needed: :meth:`set_origin` takes the clock owner's own mapping
+    (the fit still comes 1-3 ms behind it with 10 Hz ticks on this machine).
     """
 
     def __init__(
@@ -141,6 +143,15 @@ class ClockEstimate:
         self._rate = 1.0
         self._origin: float | None = None  # wall time of simulated 0 at the fitted rate
         self._last = -math.inf
+        self._exact: tuple[float, float] | None = None  # the owner's (wall of sim 0, rate)
+
+    def set_origin(self, wall0: float, rate: float) -> None:
+        """The clock owner's own mapping, simulated = (wall - ``wall0``) * ``rate``, on the
+        same host's steady clock (the simulated xy table publishes it): readings are then
+        exact, neither a hop nor a fit behind; still never more than ``max_ahead`` past the
+        last tick (a clock whose owner died stays where it stopped)."""
+        if math.isfinite(wall0) and math.isfinite(rate) and rate > 0.0:
+            self._exact = (wall0, rate)
 
     def tick(self, sim: float, wall: float) -> None:
         """A /clock tick at simulated time ``sim``, received at steady wall time ``wall``."""
@@ -150,6 +161,7 @@ class ClockEstimate:
         self._last_tick = (sim, wall)
         if last is not None and sim < last[0]:
             self._last = -math.inf  # the clock was reset (a new run): start over
+            self._exact = None
         if last is None or sim <= last[0]:
             self._restart(sim, wall, held=last is not None and sim == last[0])
             return
@@ -196,10 +208,11 @@ class ClockEstimate:
         if self._last_tick is None:
             return None
         sim, at = self._last_tick
-        fitted = (
-            sim + max(wall - at, 0.0) * self._rate
-            if self._origin is None
-            else (wall - self._origin) * self._rate
-        )
+        if self._exact is not None:
+            fitted = (wall - self._exact[0]) * self._exact[1]
+        elif self._origin is None:
+            fitted = sim + max(wall - at, 0.0) * self._rate
+        else:
+            fitted = (wall - self._origin) * self._rate
         self._last = max(self._last, min(max(fitted, sim), sim + self.max_ahead))
         return self._last

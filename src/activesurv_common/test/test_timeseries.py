@@ -67,6 +67,23 @@ def test_clock_estimate_is_not_made_late_by_a_tick_heard_late() -> None:
     assert c.now(origin + 0.05 * 120 + 0.009) == pytest.approx(12.018, abs=1e-3)
 
 
+def test_clock_estimate_reads_its_owners_mapping_exactly() -> None:
+    """With the owner's mapping (simulated = (wall - wall0) * rate) no fit is read: ticks
+    heard late or early change nothing; still at most max_ahead past the last tick, and a new
+    run forgets the old mapping."""
+    c = ClockEstimate(max_ahead=0.25)
+    c.set_origin(50.0, 2.0)
+    c.tick(0.1, 50.06)  # heard 10 ms late
+    assert c.now(50.07) == pytest.approx(0.14)
+    c.tick(0.2, 50.1)
+    assert c.now(50.1005) == pytest.approx(0.201)
+    assert c.now(60.0) == pytest.approx(0.45)  # the owner stopped ticking: held
+    c.set_origin(float('nan'), 2.0)  # ignored
+    c.tick(0.0, 70.0)  # a new run
+    c.tick(0.05, 70.05)
+    assert c.now(70.06) == pytest.approx(0.06, abs=1e-6)  # the fit again, not 40 s
+
+
 def test_clock_estimate_fits_no_held_start() -> None:
     """Ticks of a clock held at 0 before its run starts do not lie on its line."""
     c = ClockEstimate()

@@ -97,7 +97,7 @@ class FusionNode(Node):
                 )
         self._status_counts: Counter[str] = Counter()
         self._counts: Counter[str] = Counter()
-        self._fine = FineClock(self.get_clock())  # an estimate's publication, for the budget
+        self._fine = FineClock(self.get_clock(), self)  # when an estimate is published: budget
 
         self._estimate_pub = self.create_publisher(
             TargetEstimate, topics.TARGET_ESTIMATE, qos.RESULTS

@@ -67,7 +67,7 @@ class ImagerNode(Node):
         warm_up()  # the imaging kernels compiled (make setup) or loaded before the first frame
         self._info_tolerance = float(v['camera_info_tolerance'])
         self._info_checked = False  # a driver's camera_info only compared with the file's
-        self._fine = FineClock(self.get_clock())
+        self._fine = FineClock(self.get_clock(), self)
         service = str(v['trigger_service'])
         self._trigger = SoftwareTrigger(self, service, v['trigger_lead']) if service else None
         self._obs_pub = self.create_publisher(

@@ -5,10 +5,12 @@ core (:mod:`activesurv_recording.bagio`) stays free of rclpy."""
 from __future__ import annotations
 
 import importlib
+import time
 from collections.abc import Sequence
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     Qos,
     QosDurability,
@@ -17,6 +19,22 @@ from rosbags.rosbag2.metadata import (  # type: ignore[attr-defined]
     QosReliability,
     QosTime,
 )
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
+
+from activesurv_common.ros import topics
+from activesurv_common.timeseries import ClockEstimate
+
+
+def feed_clock(clock: ClockEstimate, topic: str, data: bytes) -> None:
+    """A serialized /clock tick heard now, or the simulated clock's origin, into ``clock``."""
+    if topic == topics.CLOCK:
+        c = deserialize_message(data, Clock).clock
+        clock.tick(c.sec + 1e-9 * c.nanosec, time.monotonic())
+    elif topic == topics.CLOCK_ORIGIN:
+        origin = deserialize_message(data, Float64MultiArray).data
+        if len(origin) >= 2:
+            clock.set_origin(float(origin[0]), float(origin[1]))
 
 
 def message_class(type_name: str) -> Any:

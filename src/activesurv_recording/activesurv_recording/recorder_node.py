@@ -29,8 +29,6 @@ from typing import Any
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from rclpy.serialization import deserialize_message
-from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
 from activesurv_common.ros import qos, topics
@@ -44,7 +42,7 @@ from activesurv_recording.bagio import (
     open_writer,
     strip_namespace,
 )
-from activesurv_recording.conversions import message_class, recording_qos
+from activesurv_recording.conversions import feed_clock, message_class, recording_qos
 from activesurv_recording.errors import BagError
 from activesurv_recording.recorder_params import PARAMS
 
@@ -144,15 +142,14 @@ class RecorderNode(Node):
     def _callback(self, topic: str, type_name: str) -> Any:
         thinned = topic in self.thin
         name = strip_namespace(topic, self.namespace)
-        is_clock = topic == topics.CLOCK and self.sim_time
+        is_clock = topic in (topics.CLOCK, topics.CLOCK_ORIGIN) and self.sim_time
 
         def callback(data: bytes) -> None:
             with self._lock:  # callbacks may run concurrently (multi-threaded executors)
                 if self.bag is None:
                     return
                 if is_clock:
-                    c = deserialize_message(data, ClockMsg).clock
-                    self.clock.tick(c.sec + 1e-9 * c.nanosec, time.monotonic())
+                    feed_clock(self.clock, topic, data)
                 now = self._stamp()
                 if thinned and self.image_period:
                     if now * 1e-9 - self.last_image.get(topic, -1e18) < self.image_period - 1e-6:

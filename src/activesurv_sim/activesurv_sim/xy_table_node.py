@@ -29,6 +29,7 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
 
 from activesurv_common.pacing import PhaseLock
 from activesurv_common.ros import qos, topics
@@ -62,6 +63,12 @@ class XYTableNode(Node):
         self._wait_timeout = float(g('wait_timeout').value)
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
+        )
+        origin = topics.CLOCK_ORIGIN  # simulated = (steady - data[0]) * data[1], exactly
+        self._origin_pub = (
+            self.create_publisher(Float64MultiArray, origin, qos.LATCHED)
+            if self.publish_clock
+            else None
         )
         self._pub = self.create_publisher(ObjectStateMsg, topics.OBJECT_STATE, qos.STATE)
         self._last_clock = -1.0
@@ -107,6 +114,8 @@ class XYTableNode(Node):
             if short:
                 self.get_logger().warning(f'starting with {short} subscribers ({waited:.0f} s)')
             self._wall0 = time.monotonic()
+            if self._origin_pub is not None:
+                self._origin_pub.publish(Float64MultiArray(data=[self._wall0, self.rtf]))
             self.get_logger().info('simulated time starts')
             return True
         return False

@@ -59,6 +59,7 @@ STATUS = _profile(10)
 # takes the depth from here to note it in a bag, and replay offers it again.
 PUBLISHED: dict[str, QoSProfile] = {
     '/clock': CLOCK,
+    '/sim/clock_origin': LATCHED,
     '/object_state': STATE,
     '/overhead/fix': STATE,
     '/overhead/track': SENSOR,

@@ -8,6 +8,9 @@ from __future__ import annotations
 # Ground truth and time (simulator)
 OBJECT_STATE = 'object_state'
 CLOCK = '/clock'
+# Simulation only: the owner of /clock's mapping, simulated time = (steady time - data[0]) *
+# data[1] (std_msgs/Float64MultiArray, latched), so nodes on its host read the time exactly.
+CLOCK_ORIGIN = '/sim/clock_origin'
 # Simulation only: the truth at a demand instant as already determined before it (the table's
 # programmed path; a stage's motion when no new goal comes), so a simulated camera can render
 # ahead what it will expose. Real drivers publish nothing of the kind.

@@ -53,11 +53,13 @@ def test_a_container_hands_a_message_over_in_process_and_once(
     imager = rclpy_context.create_node('local_imager')
     other = rclpy_context.create_node('local_other')
     got: list[Any] = []
+    early: list[Any] = []  # subscribed before the local publisher existed: plain rclpy
     try:
-        local_topics.subscription(imager, Image, '/lt/image_raw', got.append, qos.SENSOR_RELIABLE)
+        local_topics.subscription(other, Image, '/lt/image_raw', early.append, qos.SENSOR_RELIABLE)
         pub = local_topics.publisher(camera, Image, '/lt/image_raw', qos.SENSOR_RELIABLE)
+        local_topics.subscription(imager, Image, '/lt/image_raw', got.append, qos.SENSOR_RELIABLE)
         remote = other.create_publisher(Image, '/lt/image_raw', qos.SENSOR_RELIABLE)
-        assert spin_until([camera, imager, other], lambda: pub.get_subscription_count() >= 1)
+        assert spin_until([camera, imager, other], lambda: pub.get_subscription_count() >= 2)
         first = _image(1)
         pub.publish(first)
         assert got == [first]
@@ -67,6 +69,8 @@ def test_a_container_hands_a_message_over_in_process_and_once(
         end = time.monotonic() + 0.5  # the first one's DDS copy has come by now: dropped
         spin_until([camera, imager, other], lambda: time.monotonic() > end, 2.0)
         assert [m.header.stamp.sec for m in got] == [1, 2]
+        assert [m.header.stamp.sec for m in early] == [1, 2]  # over DDS only, each once
+        assert early[0] is not first
     finally:
         for node in (camera, imager, other):
             node.destroy_node()

@@ -6,12 +6,14 @@ camera's frames that is the step between the exposure and its imaging (0.5-5 ms 
 instant on two cores, docs/performance.md). A container that spins its members on one thread
 calls :func:`enable`; then a :func:`publisher` first calls the callbacks of the
 :func:`subscription` s of the same resolved topic in the process, with the message object
-itself, and then publishes it over DDS for everyone else (the recorder, viewers). The
-subscription also hears the DDS copy (taken raw, not deserialized): a message whose header it
-has had in process is dropped, any other (another process's publisher, a replay) is handled
-as usual. Without :func:`enable` (a node alone, a multi-threaded composition, where a direct
-call would bypass the node's callback group) both are plain rclpy publishers and
-subscriptions.
+itself, and then publishes it over DDS for everyone else (the recorder, viewers). A
+subscription takes messages in process when its topic's publisher was made before it in the
+process (the graph builds a camera before its imager); it then also hears the DDS copy (taken
+raw, not deserialized): a message whose header it has had in process is dropped, any other
+(another process's publisher) is handled as usual. Any other subscription (a driver in
+another process, a rig's camera) is a plain rclpy one. Without :func:`enable` (a node alone,
+a multi-threaded composition, where a direct call would bypass the node's callback group) both
+are plain rclpy publishers and subscriptions.
 
 Only messages that begin with a ``std_msgs/Header`` (stamp and frame id) may use it.
 """
@@ -29,6 +31,7 @@ from rclpy.serialization import deserialize_message
 
 _ENABLED = [False]
 _SUBSCRIBERS: dict[str, list[Callable[[Any], None]]] = {}
+_PUBLISHERS: set[str] = set()  # resolved topics with a local publisher in this process
 _KEPT = 32  # header keys remembered per subscription (frames in flight over DDS)
 
 
@@ -64,6 +67,7 @@ class LocalPublisher:
     def __init__(self, node: Node, msg_type: Any, topic: str, qos_profile: QoSProfile) -> None:
         self._pub = node.create_publisher(msg_type, topic, qos_profile)
         self.topic_name = self._pub.topic_name
+        _PUBLISHERS.add(self.topic_name)
 
     def publish(self, msg: Any) -> None:
         for callback in list(_SUBSCRIBERS.get(self.topic_name, ())):
@@ -88,8 +92,9 @@ def subscription(
     callback: Callable[[Any], None],
     qos_profile: QoSProfile,
 ) -> None:
-    """Subscribe ``callback``; when :func:`enable` d, in process too, each message once."""
-    if not _ENABLED[0]:
+    """Subscribe ``callback``: in process too, each message once, if the topic has a local
+    publisher already (and :func:`enable` was called); else as rclpy does."""
+    if not _ENABLED[0] or node.resolve_topic_name(topic) not in _PUBLISHERS:
         node.create_subscription(msg_type, topic, callback, qos_profile)
         return
     seen: deque[tuple[int, int, str]] = deque(maxlen=_KEPT)

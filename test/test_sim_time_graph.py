@@ -138,9 +138,10 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
     try:
         with Launcher(specs, workdir=tmp_path) as launcher:
             assert spin_until([peer], lambda: launcher.check() is None and len(stamps) > 5, 30.0)
-            # Instants on the periodic states' grid (the table starts its time on a tick),
-            # 0.5 s ahead: the periodic state and the instant's would coincide.
-            base = round(stamps[-1] * rate) / rate + 0.5
+            # Instants a tenth of a period past the periodic states' grid (the table starts
+            # its time on a tick), 0.5 s ahead: the periodic state falls within a quarter
+            # period of the instant's (and a periodic tick is not taken for an instant's).
+            base = round(stamps[-1] * rate) / rate + 0.5 + 0.1 / rate
             for i in range(4):
                 t = base + 0.25 * i
                 instants.append(t)

@@ -148,8 +148,10 @@ class ClockEstimate:
     def set_origin(self, wall0: float, rate: float) -> None:
         """The clock owner's own mapping, simulated = (wall - ``wall0``) * ``rate``, on the
         same host's steady clock (the simulated xy table publishes it): readings are then
-        exact, neither a hop nor a fit behind; still never more than ``max_ahead`` past the
-        last tick (a clock whose owner died stays where it stopped)."""
+        exact, neither a hop nor a fit behind, before the first tick too (a process that
+        stalled at start-up and handles a message before its ticks). A tick ahead of the
+        mapping, or 10 s behind it, is from another clock (a bag played with an old mapping):
+        the mapping is dropped."""
         if math.isfinite(wall0) and math.isfinite(rate) and rate > 0.0:
             self._exact = (wall0, rate)
 
@@ -157,6 +159,10 @@ class ClockEstimate:
         """A /clock tick at simulated time ``sim``, received at steady wall time ``wall``."""
         if not (math.isfinite(sim) and math.isfinite(wall)):
             return
+        if self._exact is not None:
+            off = (wall - self._exact[0]) * self._exact[1] - sim
+            if not -0.01 <= off <= 10.0:
+                self._exact = None
         last = self._last_tick
         self._last_tick = (sim, wall)
         if last is not None and sim < last[0]:
@@ -205,12 +211,13 @@ class ClockEstimate:
 
     def now(self, wall: float) -> float | None:
         """Simulated time at steady wall time ``wall``; None before the first tick."""
+        if self._exact is not None:
+            self._last = max(self._last, (wall - self._exact[0]) * self._exact[1])
+            return self._last
         if self._last_tick is None:
             return None
         sim, at = self._last_tick
-        if self._exact is not None:
-            fitted = (wall - self._exact[0]) * self._exact[1]
-        elif self._origin is None:
+        if self._origin is None:
             fitted = sim + max(wall - at, 0.0) * self._rate
         else:
             fitted = (wall - self._origin) * self._rate

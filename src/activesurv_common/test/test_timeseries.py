@@ -69,16 +69,19 @@ def test_clock_estimate_is_not_made_late_by_a_tick_heard_late() -> None:
 
 def test_clock_estimate_reads_its_owners_mapping_exactly() -> None:
     """With the owner's mapping (simulated = (wall - wall0) * rate) no fit is read: ticks
-    heard late or early change nothing; still at most max_ahead past the last tick, and a new
-    run forgets the old mapping."""
+    heard late change nothing, and it reads before any tick; a new run forgets the old
+    mapping, and so does a tick that cannot be the mapping's (an old mapping played back)."""
     c = ClockEstimate(max_ahead=0.25)
     c.set_origin(50.0, 2.0)
-    c.tick(0.1, 50.06)  # heard 10 ms late
-    assert c.now(50.07) == pytest.approx(0.14)
-    c.tick(0.2, 50.1)
-    assert c.now(50.1005) == pytest.approx(0.201)
-    assert c.now(60.0) == pytest.approx(0.45)  # the owner stopped ticking: held
+    assert c.now(50.85) == pytest.approx(1.7)  # no tick handled yet (a stalled start)
+    c.tick(0.1, 50.06)  # heard late (behind the mapping: as ticks are)
+    assert c.now(50.87) == pytest.approx(1.74)
     c.set_origin(float('nan'), 2.0)  # ignored
+    d = ClockEstimate()
+    d.set_origin(1000.0, 1.0)  # a bag's old mapping ...
+    d.tick(5.0, 10.0)  # ... and a tick 985 s behind it: another clock
+    d.tick(5.1, 10.1)
+    assert d.now(10.15) == pytest.approx(5.15, abs=1e-6)
     c.tick(0.0, 70.0)  # a new run
     c.tick(0.05, 70.05)
     assert c.now(70.06) == pytest.approx(0.06, abs=1e-6)  # the fit again, not 40 s

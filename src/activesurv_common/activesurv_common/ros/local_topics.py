@@ -40,10 +40,6 @@ def enable(on: bool = True) -> None:
     _ENABLED[0] = on
 
 
-def enabled() -> bool:
-    return _ENABLED[0]
-
-
 def header_key(msg: Any) -> tuple[int, int, str]:
     """A message's identity: its header's stamp and frame id."""
     h = msg.header

@@ -18,7 +18,8 @@ calibration (so errors are the method's, not a calibration's):
   ``setA_fast_not_ok`` list the demands short of ok (or of k cameras) with their reasons.
 * ``latency_bound_ms``: what a free-running camera allows (issue 35): its own delay plus the
   median wait for the first frame after the instant (half a frame period) plus the compute on
-  the critical path (the session's median of its slowest camera's imaging CPU per demand);
+  the critical path (the session's median of its slowest camera's imaging CPU plus fusion's,
+  per demand);
   ``surveil_latency_to_bound`` = the session's median latency over it. The camera's delay is
   measured (``camera_delay_ms``: the median of every frame's arrival at its imager after its
   exposure, :func:`activesurv_evaluation.timing.camera_delays`): the lab's cameras declare

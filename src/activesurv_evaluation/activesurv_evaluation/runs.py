@@ -179,6 +179,7 @@ def _demand_records(
             observed,
             None if est is None else est[1] * 1e-9,
             None if est is None else published(est[0]),
+            None if est is None else published(est[0], 'compute_time'),
         )
         rec.t = t_run
         rec.predictions = heard.predicted.picks(j, tj)

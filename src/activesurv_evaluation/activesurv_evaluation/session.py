@@ -171,6 +171,7 @@ def _demand_rows(heard: _SessionBag, record: RunRecord, obstacles: Any) -> list[
             observed,
             None if est is None else est[1] * 1e-9,
             None if est is None else published(est[0]),
+            None if est is None else published(est[0], 'compute_time'),
         )
         doc = rec.to_json()
         doc['t'] = tj - record.time_origin

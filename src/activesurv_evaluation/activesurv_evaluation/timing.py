@@ -21,10 +21,15 @@ not in the bag):
   ``estimate``): a listener's view, later than the producers' own by the hop and by the
   recorder's wake-up (it runs at a lower priority in simulated runs);
 * ``compute``: each camera's imager's own processing of its frame (detect, fit, pose; from
-  the observation's ``compute_time``; ``{}`` for bags from before it was carried).
+  the observation's ``compute_time``; ``{}`` for bags from before it was carried);
+* ``fusion_compute``: fusion's own processing from the message that completed the demand to
+  the estimate (the estimate's ``compute_time``; ``null`` for bags from before it was carried).
 
 :func:`critical_compute` is the compute on a demand's critical path: the slowest of its
-cameras' processing (the cameras image in parallel, each on its own host on a rig).
+cameras' processing (the cameras image in parallel, each on its own host on a rig) plus
+fusion's. :func:`compute_on_cores` is the least time that compute can take on a host with
+``cores`` cores, where every camera's imaging shares them: the k imagings take at least their
+sum over the cores.
 
 :func:`largest_wait` names the step that took longest after the one before it.
 """
@@ -104,9 +109,11 @@ class StepTimes:
         observations: Sequence[tuple[Any, float]],
         estimate_received: float | None,
         estimate_published: float | None = None,
+        estimate_compute: float | None = None,
     ) -> dict[str, Any]:
         """The demand's budget: ``observations`` are (message, receive time) pairs;
-        ``estimate_published``: the estimate's own ``published`` (s after the instant)."""
+        ``estimate_published``: the estimate's own ``published`` (s after the instant);
+        ``estimate_compute``: its ``compute_time`` (s)."""
         states = [
             s.first_at_or_after(instant)
             for c in assigned
@@ -145,6 +152,7 @@ class StepTimes:
             'observations': seen,
             'estimate': estimate_published if estimate_published is not None else got,
             'compute': compute,
+            'fusion_compute': estimate_compute,
             'heard': {'observations': heard, 'estimate': got},
         }
 
@@ -164,14 +172,27 @@ def empty_timing(latency: float | None = None) -> dict[str, Any]:
         'observations': {},
         'estimate': latency,
         'compute': {},
+        'fusion_compute': None,
         'heard': {'observations': {}, 'estimate': None},
     }
 
 
 def critical_compute(timing: dict[str, Any]) -> float | None:
-    """The slowest camera's processing of the demand's frame (s), or None if unknown."""
+    """The slowest camera's processing of the demand's frame plus fusion's (s), or None if no
+    camera's is known (fusion's counts as 0 where unknown: older bags)."""
     spent = (timing.get('compute') or {}).values()
-    return max(spent) if spent else None
+    return max(spent) + float(timing.get('fusion_compute') or 0.0) if spent else None
+
+
+def compute_on_cores(timing: dict[str, Any], cores: int) -> float | None:
+    """The least time the demand's compute takes on ``cores`` cores shared by all its cameras'
+    imaging (s): the slowest imaging or their sum over the cores, whichever is longer, plus
+    fusion's; None if no camera's is known."""
+    spent = list((timing.get('compute') or {}).values())
+    if not spent or cores < 1:
+        return None
+    fusion = float(timing.get('fusion_compute') or 0.0)
+    return max(float(max(spent)), float(sum(spent)) / cores) + fusion
 
 
 def camera_delays(demands: Iterable[dict[str, Any]]) -> list[float]:

@@ -9,6 +9,7 @@ from activesurv_evaluation.timing import (
     StepTimes,
     budget,
     camera_delays,
+    compute_on_cores,
     critical_compute,
     empty_timing,
     largest_wait,
@@ -51,6 +52,22 @@ def test_each_step_after_the_instant() -> None:
     assert names == ['stage state', 'frames', 'observations', 'fusion']
     assert abs(sum(s for _, s in budget(timing)) - 0.027) < 1e-9
     assert largest_wait([timing])[0] == 'frames'  # 3 -> 18 ms
+
+
+def test_the_critical_path_holds_fusions_compute_and_the_cores_shared() -> None:
+    """Fusion's processing is on every demand's critical path; with k imagings on fewer cores,
+    the least time is their sum over the cores where that exceeds the slowest one."""
+    steps = StepTimes()
+    observed = [(_obs(c, compute=0.004), 1.01) for c in ('cam1', 'cam2', 'cam3')]
+    timing = steps.timing(1.0, ['cam1', 'cam2', 'cam3'], observed, 1.02, 0.015, 0.001)
+    assert timing['fusion_compute'] == 0.001
+    assert abs(critical_compute(timing) - 0.005) < 1e-12  # type: ignore[operator]
+    assert abs(compute_on_cores(timing, 2) - 0.007) < 1e-12  # type: ignore[operator]
+    assert abs(compute_on_cores(timing, 4) - 0.005) < 1e-12  # type: ignore[operator]
+    older = steps.timing(1.0, ['cam1'], observed[:1], 1.02)  # a bag from before: no fusion's
+    assert older['fusion_compute'] is None
+    assert critical_compute(older) == 0.004
+    assert compute_on_cores(empty_timing(), 2) is None
 
 
 def test_missing_steps_are_null() -> None:

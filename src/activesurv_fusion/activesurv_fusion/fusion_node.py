@@ -20,6 +20,7 @@ it answers every open demand before it stops.
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
 from typing import Any
 
@@ -98,7 +99,6 @@ class FusionNode(Node):
         self._status_counts: Counter[str] = Counter()
         self._counts: Counter[str] = Counter()
         self._fine = FineClock(self.get_clock(), self)  # when an estimate is published: budget
-
         self._estimate_pub = self.create_publisher(
             TargetEstimate, topics.TARGET_ESTIMATE, qos.RESULTS
         )
@@ -111,12 +111,9 @@ class FusionNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS_LATCHED
         )
-        self.create_subscription(
-            MarkerObservation,
-            topics.MARKER_OBSERVATIONS,
-            self._on_observation,
-            qos.EVENTS_LATCHED,
-        )
+        observations = topics.MARKER_OBSERVATIONS
+        obs_qos = qos.EVENTS_LATCHED
+        self.create_subscription(MarkerObservation, observations, self._on_observation, obs_qos)
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
 
@@ -140,10 +137,11 @@ class FusionNode(Node):
             self._counts['requests_after_answer'] += 1
 
     def _on_observation(self, msg: MarkerObservation) -> None:
+        started = time.thread_time()  # fusion's compute on the budget: CPU, not waiting
         answer = observation_to_answer(msg)
         stamp = time_to_sec(msg.header.stamp)
         self._collector.observe(int(msg.demand_index), answer, self._now(), stamp)
-        self._publish_ready(self._collector.pop_ready(self._now()))
+        self._publish_ready(self._collector.pop_ready(self._now()), started)
 
     def _on_tick(self) -> None:
         self._publish_ready(self._collector.pop_ready(self._now()))
@@ -152,14 +150,18 @@ class FusionNode(Node):
         """Answer every open demand now (on shutdown), so none is left silent."""
         self._publish_ready(self._collector.flush())
 
-    def _publish_ready(self, batches: list[DemandBatch]) -> None:
+    def _publish_ready(self, batches: list[DemandBatch], started: float | None = None) -> None:
+        started = time.thread_time() if started is None else started
         frame = str(self.get_parameter('frame_id').value)
         z = float(self.get_parameter('z_sigma').value)
         max_faulty = int(self.get_parameter('max_faulty').value)
         for batch in batches:
             result = resolve(batch, z=z, max_faulty=None if max_faulty < 0 else max_faulty)
             self._status_counts[result.status.name] += 1
-            self._estimate_pub.publish(result_to_estimate(result, frame, self._fine.now()))
+            estimate = result_to_estimate(result, frame, self._fine.now())
+            estimate.compute_time = time.thread_time() - started
+            self._estimate_pub.publish(estimate)
+            started = time.thread_time()
             if self._journal:
                 append_journal(self._journal, result.index)
             pose = result_to_pose(result, frame)

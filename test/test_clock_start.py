@@ -37,3 +37,18 @@ def test_one_clock_reader_per_simulated_time_process(tmp_path: Path) -> None:
     grouped = group_processes(nodes)
     assert clock_readers(grouped) == 8
     assert clock_readers([NodeSpec('x', 'm', parameters={'use_sim_time': False})]) == 0
+
+
+def test_a_cameras_driver_runs_with_its_imager_not_in_the_background() -> None:
+    """A driver camera (``device:``) is grouped like a simulated one: in its camera's
+    container at normal priority, not in the planners' ``core`` group at nice 5."""
+    specs = [
+        NodeSpec('cam1_camera', 'activesurv_hardware.camera_node'),
+        NodeSpec('cam1_imager', 'activesurv_imaging.imager_node'),
+        NodeSpec('predictor', 'activesurv_prediction.predictor_node'),
+        NodeSpec('dispatcher', 'activesurv_dispatch.dispatcher_node'),
+    ]
+    grouped = {s.name: s for s in group_processes(specs)}
+    assert sorted(grouped) == ['cam1', 'core']
+    assert [m.name for m in grouped['cam1'].members] == ['cam1_camera', 'cam1_imager']
+    assert grouped['cam1'].nice == 0

@@ -280,6 +280,7 @@ def core_specs(
 
 CAMERA_MODULES = (
     'activesurv_sim.sim_camera_node',
+    'activesurv_hardware.camera_node',  # a camera's driver: with its imager, on its host
     'activesurv_sim.sim_stage_node',
     'activesurv_imaging.imager_node',
     'activesurv_stages.stage_bridge_node',

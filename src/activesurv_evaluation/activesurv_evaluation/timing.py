@@ -258,30 +258,36 @@ SEGMENT_COLOURS = {
 
 def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path | None:
     """A stacked bar per demand (ms after its instant): until the stage state, the frames,
-    the observations, the estimate (``rows``: results.json demands). Returns ``path``, or None
-    when no demand has a timing."""
+    the observations, the estimate (``rows``: results.json demands), and a black line at the
+    demand's compute on the critical path (:func:`critical_compute`), the least it could take.
+    Returns ``path``, or None when no demand has a timing."""
     # matplotlib (heavy) only when a figure is drawn
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    bars = [(int(r['index']), budget(r['timing'])) for r in rows if r.get('timing')]
-    bars = [(j, b) for j, b in bars if b]
+    timed = [r for r in rows if r.get('timing')]
+    bars = [(int(r['index']), budget(r['timing']), critical_compute(r['timing'])) for r in timed]
+    bars = [(j, b, c) for j, b, c in bars if b]
     if not bars:
         return None
     fig, ax = plt.subplots(figsize=(max(6.0, 0.25 * len(bars) + 2.0), 3.4))
     shown: set[str] = set()
-    for x, (_, segments) in enumerate(bars):
+    for x, (_, segments, compute) in enumerate(bars):
         bottom = 0.0
         for name, seg in segments:
             label = None if name in shown else name
             shown.add(name)
             ax.bar(x, 1e3 * seg, bottom=bottom, color=SEGMENT_COLOURS[name], label=label)
             bottom += 1e3 * seg
+        if compute is not None:
+            label = None if 'compute' in shown else 'compute on the critical path'
+            shown.add('compute')
+            ax.plot([x - 0.4, x + 0.4], [1e3 * compute] * 2, color='k', lw=1.5, label=label)
     ax.set_xticks(range(len(bars)))
     ax.set_xticklabels(
-        [str(j) if len(bars) <= 40 or i % 10 == 0 else '' for i, (j, _) in enumerate(bars)],
+        [str(j) if len(bars) <= 40 or i % 10 == 0 else '' for i, (j, _, _) in enumerate(bars)],
         fontsize=7,
     )
     ax.set_xlabel('demand')
@@ -292,7 +298,7 @@ def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path 
         + ('' if wait is None else f' (largest wait: {wait[0]}, median {1e3 * wait[1]:.1f} ms)'),
         fontsize=9,
     )
-    ax.legend(fontsize=7, ncol=4, loc='upper left')
+    ax.legend(fontsize=7, ncol=3, loc='upper left')
     ax.grid(axis='y', alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=90)

@@ -163,6 +163,35 @@ def test_xy_table_publishes_one_state_at_a_demand_instant(
 
 
 @pytest.mark.graph
+def test_xy_table_thins_its_clock_ticks_not_its_states(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """With ``clock_period`` the regular /clock ticks come at most once per that much
+    simulated time (each wakes every process and timer), the object states at their rate."""
+    from activesurv_launch.launcher import Launcher, NodeSpec
+
+    rate, period = 20.0, 0.1
+    parameters = {'publish_rate': rate, 'wait_for_subscribers': 1, 'clock_period': period}
+    specs = [NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=parameters)]
+    peer = rclpy_context.create_node('thin_peer')
+    stamps = _state_stamps(peer)
+    ticks = _clock_stamps(peer)
+    try:
+        with Launcher(specs, workdir=tmp_path) as launcher:
+            assert spin_until([peer], lambda: launcher.check() is None and len(stamps) > 30, 30.0)
+            launcher.check()
+    finally:
+        peer.destroy_node()
+    running = [t for t in ticks if t > 0.0]  # time held at 0 until the peer was heard
+    tick_gaps = [b - a for a, b in itertools.pairwise(running)]
+    state_gaps = [b - a for a, b in itertools.pairwise(stamps)]
+    assert len(tick_gaps) >= 8, ticks
+    assert min(tick_gaps) >= period - 1e-5, tick_gaps
+    assert max(tick_gaps) < period + 1.5 / rate, tick_gaps  # no tick lost beyond the thinning
+    assert sorted(state_gaps)[len(state_gaps) // 2] == pytest.approx(1.0 / rate, abs=0.01)
+
+
+@pytest.mark.graph
 def test_xy_table_keeps_its_states_on_a_phased_grid(
     tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:

@@ -13,7 +13,8 @@ Subscribes:
         clock tick at exactly that instant: every node's timers see the instant (a regular
         state and tick that close are skipped). With ``instant_ticks`` false the instant gets
         its state only (the simulated cameras image on it; no process wakes for a tick then,
-        and a regular tick that close is kept). On the request it also
+        and a regular tick that close is kept). ``clock_period`` thins the regular ticks (not
+        the states): at most one per that much simulated time. On the request it also
         publishes ``sim/planned_object_state``, the state its program will reach then (the
         simulated cameras render ahead with it; see ``sim_camera``).
 Parameters: see ``config/xy_table.yaml`` (path_type stream: ``activesurv_sim.stream``).
@@ -81,6 +82,7 @@ class XYTableNode(Node):
                 CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
             )
         self._instant_ticks = bool(g('instant_ticks').value)
+        self._clock_period = float(g('clock_period').value)
         self._period = 1.0 / float(g('publish_rate').value)
         phase = float(g('publish_phase').value)
         self._grid = PhaseLock(1.0 / self._period, phase) if phase else None
@@ -130,7 +132,8 @@ class XYTableNode(Node):
             return
         near = near_instant(t, self._triggers, self._period)
         if not near or not self._instant_ticks:
-            self._publish_at(t, states=not near)
+            tick = t >= self._last_clock + self._clock_period - 1e-6  # every timer wakes on it
+            self._publish_at(t, states=not near, tick=tick)
 
     def _publish_at(self, t: float, states: bool = True, tick: bool = True) -> None:
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)

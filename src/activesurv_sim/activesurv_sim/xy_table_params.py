@@ -36,4 +36,10 @@ PARAMS = (
     Param('stream_script', '', 'stream: JSON list of scripted objects instead of drawn ones'),
     Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
     Param('instant_ticks', True, 'with demand_states: a /clock tick at each instant too'),
+    Param(
+        'clock_period',
+        0.0,
+        's: least simulated time between regular /clock ticks (0: one with every state)',
+        minimum=0.0,
+    ),
 )

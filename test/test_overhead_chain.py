@@ -91,3 +91,35 @@ def test_images_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., 
     finally:
         for n in (cam, locator, pred, peer):
             n.destroy_node()
+
+
+def test_a_containers_overhead_frames_reach_the_locator_in_process(rclpy_context: Any) -> None:
+    """In a container (``local_topics`` enabled, the camera built first, as the graph puts
+    the overhead camera and its locator in one process) each frame is located when it is
+    published, without a spin and without a copy through DDS."""
+    from sensor_msgs.msg import Image
+
+    from activesurv_common.ros import local_topics
+
+    local_topics.enable()
+    camera = rclpy_context.create_node('overhead_camera', namespace='/lt_over')
+    try:
+        pub = local_topics.publisher(camera, Image, 'overhead/image_raw', qos.SENSOR_RELIABLE)
+        locator = OverheadLocatorNode(
+            namespace='/lt_over',
+            parameter_overrides=[
+                Parameter('camera_pose', value=OVERHEAD_POSE),
+                Parameter('marker_height', value=TOP_HEIGHT),
+            ],
+        )
+    finally:
+        local_topics.enable(False)
+    try:
+        msg = Image(height=4, width=4, step=4, encoding='mono8', data=bytes(16))
+        msg.header.frame_id = 'overhead_optical_frame'
+        pub.publish(msg)
+        assert locator.counts['frames'] == 1  # handled in the publish call itself
+        assert locator.last_reason == 'waiting for camera_info'
+    finally:
+        locator.destroy_node()
+        camera.destroy_node()

@@ -94,7 +94,7 @@ class ImagerNode(Node):
         image = topics.image(self.camera_id)  # from a camera in its container: in process
         local_topics.subscription(self, Image, image, self._on_image, image_qos)
         info = topics.camera_info(self.camera_id)
-        self.create_subscription(CameraInfo, info, self._on_info, qos.SENSOR)
+        local_topics.subscription(self, CameraInfo, info, self._on_info, qos.SENSOR)
         if self.core.joint_names:
             # Reliable with the simulator and replays: the state latched at a demand instant
             # must not be dropped in a burst (a replay then measured with another pose).

@@ -21,7 +21,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, matrix_from_quaternion
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -88,10 +88,12 @@ class OverheadLocatorNode(Node):
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
-        self.create_subscription(Image, topics.image(self.camera_id), self._on_image, qos.SENSOR)
-        self.create_subscription(
-            CameraInfo, topics.camera_info(self.camera_id), self._on_info, qos.SENSOR
-        )
+        # From the overhead camera in its container: in process (no copy through DDS), its
+        # intrinsics before each frame.
+        image = topics.image(self.camera_id)
+        local_topics.subscription(self, Image, image, self._on_image, qos.SENSOR)
+        info = topics.camera_info(self.camera_id)
+        local_topics.subscription(self, CameraInfo, info, self._on_info, qos.SENSOR)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _on_info(self, msg: CameraInfo) -> None:

@@ -62,9 +62,8 @@ class SimCameraNode(Node):
         # Its imager in the same container images a frame before the frame goes over DDS.
         image = topics.image(self.camera_id)
         self._image_pub = local_topics.publisher(self, Image, image, qos.SENSOR_RELIABLE)
-        self._info_pub = self.create_publisher(
-            CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR_RELIABLE
-        )
+        info = topics.camera_info(self.camera_id)
+        self._info_pub = local_topics.publisher(self, CameraInfo, info, qos.SENSOR_RELIABLE)
         if str(g('payload').value) == 'board':  # commissioning: the table's stage carries it
             table = topics.joint_states(TABLE_ID)
             self.create_subscription(JointState, table, self._on_table, qos.STATE)
@@ -168,8 +167,9 @@ class SimCameraNode(Node):
         if preview:  # for viewers: no camera_info, no imaging
             self._preview_pub.publish(gray_to_image(gray, self.frame_id, stamp))
             return
-        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+        # The intrinsics first: a consumer in the container then has them for the frame.
         self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
+        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self.frames_published += 1
         self.frames_ahead += int(ahead)
 

@@ -89,3 +89,35 @@ def test_without_a_container_they_are_plain_rclpy(rclpy_context: Any) -> None:
         assert got == []  # only over DDS, on a spin
     finally:
         node.destroy_node()
+
+
+def test_only_local_takes_the_process_publisher_alone_and_adds_no_reader(
+    rclpy_context: Any, spin_until: Callable[..., bool], enabled: None
+) -> None:
+    """A camera's own stage in its container: the states come in process, and no DDS reader
+    is made (the publisher counts none; another process's copy never arrives)."""
+    from sensor_msgs.msg import JointState
+
+    stage = rclpy_context.create_node('local_stage')
+    camera = rclpy_context.create_node('local_cam')
+    other = rclpy_context.create_node('local_other_stage')
+    got: list[Any] = []
+    try:
+        pub = local_topics.publisher(stage, JointState, '/lt/joint_states', qos.STATE)
+        local_topics.subscription(
+            camera, JointState, '/lt/joint_states', got.append, qos.STATE, only_local=True
+        )
+        remote = other.create_publisher(JointState, '/lt/joint_states', qos.STATE)
+        msg = JointState(name=['rail'], position=[0.1])
+        msg.header.stamp.sec = 4
+        pub.publish(msg)
+        assert got == [msg]
+        assert got[0] is msg
+        end = time.monotonic() + 0.5
+        spin_until([stage, camera, other], lambda: time.monotonic() > end, 2.0)
+        assert pub.get_subscription_count() == 0
+        assert remote.get_subscription_count() == 0
+        assert len(got) == 1
+    finally:
+        for node in (stage, camera, other):
+            node.destroy_node()

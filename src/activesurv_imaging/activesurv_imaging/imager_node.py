@@ -99,9 +99,8 @@ class ImagerNode(Node):
             # Reliable with the simulator and replays: the state latched at a demand instant
             # must not be dropped in a burst (a replay then measured with another pose).
             state_qos = qos.STATE if v['reliable_images'] else qos.SENSOR
-            self.create_subscription(
-                JointState, topics.joint_states(self.camera_id), self._on_joints, state_qos
-            )
+            states, cb = topics.joint_states(self.camera_id), self._on_joints  # in process
+            local_topics.subscription(self, JointState, states, cb, state_qos, only_local=True)
         self.create_timer(0.05, self._on_tick)
         self.create_timer(0.1, self._beat)
         self.create_timer(1.0, self._publish_diagnostics)

@@ -70,9 +70,8 @@ class SimCameraNode(Node):
         else:
             self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
         if self.sim.joint_names:
-            self.create_subscription(
-                JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
-            )
+            states, cb = topics.joint_states(self.camera_id), self._on_joints  # in process
+            local_topics.subscription(self, JointState, states, cb, qos.SENSOR, only_local=True)
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )

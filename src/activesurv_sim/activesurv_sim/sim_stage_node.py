@@ -25,7 +25,7 @@ from rclpy.node import Node
 from rclpy.timer import Timer
 from sensor_msgs.msg import JointState
 
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -70,9 +70,9 @@ class SimStageNode(Node):
         self.counts: Counter[str] = Counter()
         self.last_refusal = ''
 
-        self._pub = self.create_publisher(
-            JointState, topics.joint_states(self.camera_id), qos.STATE
-        )
+        # Its camera and imager in its container take the states in process (local_topics).
+        states = topics.joint_states(self.camera_id)
+        self._pub = local_topics.publisher(self, JointState, states, qos.STATE)
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
         self._triggers: dict[float, Timer | None] = {}

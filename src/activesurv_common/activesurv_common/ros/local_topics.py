@@ -87,11 +87,21 @@ def subscription(
     topic: str,
     callback: Callable[[Any], None],
     qos_profile: QoSProfile,
+    only_local: bool = False,
 ) -> None:
     """Subscribe ``callback``: in process too, each message once, if the topic has a local
-    publisher already (and :func:`enable` was called); else as rclpy does."""
-    if not _ENABLED[0] or node.resolve_topic_name(topic) not in _PUBLISHERS:
+    publisher already (and :func:`enable` was called); else as rclpy does.
+
+    ``only_local``: for a topic that has one publisher by design (a camera's own stage in its
+    container), take it only in process then: no DDS reader, so the publisher sends one copy
+    less and this process wakes once less per message.
+    """
+    resolved = node.resolve_topic_name(topic)
+    if not _ENABLED[0] or resolved not in _PUBLISHERS:
         node.create_subscription(msg_type, topic, callback, qos_profile)
+        return
+    if only_local:
+        _SUBSCRIBERS.setdefault(resolved, []).append(callback)
         return
     seen: deque[tuple[int, int, str]] = deque(maxlen=_KEPT)
 

@@ -314,3 +314,18 @@ def test_bad_input_gets_a_clear_error(tmp_path: Path) -> None:
     r = _run('report', str(tmp_path / 'corrupt'))
     assert r.returncode == 1
     assert 'Traceback' not in r.stderr
+
+
+def test_cpu_json_holds_the_whole_window_and_the_running_rate(graph_run: Path) -> None:
+    """``cpu.json``: CPU of every process over the whole window, and ``running``, the rate
+    from 1 s of simulated time to the last demand (inside the window, so no longer)."""
+    cpu = json.loads((graph_run / 'cpu.json').read_text())
+    assert cpu['cores'] > 0.0
+    assert cpu['cpu_seconds']['orchestrator'] >= 0.0
+    running = cpu['running']
+    assert running['from_sim_time'] == 1.0
+    assert 0.0 < running['wall_seconds'] < cpu['wall_seconds']
+    assert 0.0 < running['cpu_seconds'] < sum(cpu['cpu_seconds'].values())
+    assert running['cores'] == pytest.approx(
+        running['cpu_seconds'] / running['wall_seconds'], abs=1e-3
+    )

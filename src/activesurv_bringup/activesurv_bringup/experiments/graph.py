@@ -590,10 +590,13 @@ def _watch(
     killed: set[Kill] = set()
     restarted: set[Kill] = set()
     cpu0, wall0 = _cpu(launcher), time.monotonic()
+    running: list[tuple[dict[str, float], float]] = []  # at RUNNING_FROM s simulated, at the end
     wall_limit = time.monotonic() + until.wall_limit
     samples: list[dict[str, Any]] = []
     next_sample = wall0
     while not until.done(monitor):
+        if not running and monitor.sim_time >= RUNNING_FROM:
+            running.append((_cpu(launcher), time.monotonic()))
         if graph.stopping:
             progress(
                 f'{graph.stopping} at simulated time {monitor.sim_time:.1f} s: stopping '
@@ -616,6 +619,8 @@ def _watch(
                 f'the run did not finish in time (simulated time {monitor.sim_time:.1f} s '
                 f'after {until.wall_limit:.0f} s of wall time)'
             )
+    if running:
+        running.append((_cpu(launcher), time.monotonic()))
     # Stop only when the recorder has every request, observation and estimate heard here
     # (a restarted node is matched late; a lost datagram holds a reliable reader's later
     # messages until the writer's next heartbeat repairs it).
@@ -627,7 +632,7 @@ def _watch(
             break
         monitor.spin(0.25)
     monitor.spin(0.5)  # the recorder gets the last messages
-    _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0)
+    _write_cpu(out_dir / 'cpu.json', cpu0, _cpu(launcher), time.monotonic() - wall0, running)
     if samples:
         (out_dir / 'resources.json').write_text(json.dumps({'samples': samples}) + '\n')
 
@@ -657,6 +662,7 @@ def _held_for_clock(specs: Sequence[NodeSpec], opts: RunOptions) -> NodeSpec:
 
 
 RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU
+RUNNING_FROM = 1.0  # simulated s: past the start's burst (discovery, the first frames)
 
 
 def _resources(launcher: NodeRunner, wall0: float, sim_time: float) -> dict[str, Any]:
@@ -675,16 +681,35 @@ def _cpu(launcher: NodeRunner) -> dict[str, float]:
     return {'orchestrator': own.user + own.system, **launcher.cpu_seconds()}
 
 
-def _write_cpu(path: Path, before: dict[str, float], after: dict[str, float], wall: float) -> None:
-    """CPU use of the run from the start of simulated time to its end (``cpu.json``).
+def _write_cpu(
+    path: Path,
+    before: dict[str, float],
+    after: dict[str, float],
+    wall: float,
+    running: Sequence[tuple[dict[str, float], float]] = (),
+) -> None:
+    """CPU use of the run from the graph's start (its processes up, before simulated time
+    starts) to its end, the recorder drained (``cpu.json``).
 
     ``cores`` is CPU seconds of all processes over wall seconds: 1.0 is one core kept busy.
-    A node restarted mid-run counts from its restart.
+    A node restarted mid-run counts from its restart. ``running`` (given two samples) is the
+    same from ``RUNNING_FROM`` s of simulated time to the last demand: the rate a running
+    graph keeps, without the start's discovery burst or the idle drain, whose share of a short
+    run's window changes ``cores`` from one run to the next.
     """
     used = {k: round(after[k] - before.get(k, 0.0), 3) for k in sorted(after)}
-    doc = {
+    doc: dict[str, Any] = {
         'wall_seconds': round(wall, 3),
         'cpu_seconds': used,
         'cores': round(sum(used.values()) / max(wall, 1e-9), 3),
     }
+    if len(running) == 2 and running[1][1] > running[0][1]:
+        (c0, w0), (c1, w1) = running
+        spent = sum(c1[k] - c0.get(k, 0.0) for k in c1)
+        doc['running'] = {
+            'from_sim_time': RUNNING_FROM,
+            'wall_seconds': round(w1 - w0, 3),
+            'cpu_seconds': round(spent, 3),
+            'cores': round(spent / (w1 - w0), 3),
+        }
     path.write_text(json.dumps(doc, indent=2) + '\n')

@@ -96,7 +96,7 @@ def test_images_to_demand_horizon(rclpy_context: Any, spin_until: Callable[..., 
 def test_a_containers_overhead_frames_reach_the_locator_in_process(rclpy_context: Any) -> None:
     """In a container (``local_topics`` enabled, the camera built first, as the graph puts
     the overhead camera and its locator in one process) each frame is located when it is
-    published, without a spin and without a copy through DDS."""
+    published, without a spin and without a copy through DDS (no reader of it there)."""
     from sensor_msgs.msg import Image
 
     from activesurv_common.ros import local_topics
@@ -120,6 +120,7 @@ def test_a_containers_overhead_frames_reach_the_locator_in_process(rclpy_context
         pub.publish(msg)
         assert locator.counts['frames'] == 1  # handled in the publish call itself
         assert locator.last_reason == 'waiting for camera_info'
+        assert pub.get_subscription_count() == 0  # no DDS reader: no copy of it through DDS
     finally:
         locator.destroy_node()
         camera.destroy_node()

@@ -88,12 +88,14 @@ class OverheadLocatorNode(Node):
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
-        # From the overhead camera in its container: in process (no copy through DDS), its
-        # intrinsics before each frame.
-        image = topics.image(self.camera_id)
-        local_topics.subscription(self, Image, image, self._on_image, qos.SENSOR)
-        info = topics.camera_info(self.camera_id)
-        local_topics.subscription(self, CameraInfo, info, self._on_info, qos.SENSOR)
+        # From the overhead camera in its container: in process only (no copy through DDS),
+        # its intrinsics before each frame; from a driver elsewhere over DDS.
+        image, info = topics.image(self.camera_id), topics.camera_info(self.camera_id)
+        for msg_type, topic, callback in (
+            (Image, image, self._on_image),
+            (CameraInfo, info, self._on_info),
+        ):
+            local_topics.subscription(self, msg_type, topic, callback, qos.SENSOR, only_local=True)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _on_info(self, msg: CameraInfo) -> None:

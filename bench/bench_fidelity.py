@@ -11,7 +11,9 @@ process (``hog_*``):
 * ``same_status_fraction``: demands with the same status in both modes;
 * ``all_dropped_runs``: graph runs in which the dispatcher dropped every camera (goal 0);
 * ``stalls``: stalls the dispatcher recognised (every camera silent at once), summed;
-* ``disagreements``: every demand that differs, with both modes' cameras and reasons.
+* ``disagreements``: every demand that differs, with both modes' cameras and reasons;
+* ``kept_runs``: where the graph runs that differed were copied (bag, logs, results), under
+  ``activesurv-fidelity-kept`` in the temporary directory, to be looked at after the bench.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -68,6 +71,23 @@ def _graph(set_name: str, system: str, seed: int, out: Path) -> dict[str, Any]:
     return doc
 
 
+def _differs(lock: list[Any], graph: dict[str, Any]) -> bool:
+    """Whether any demand of a run has another status or number of cameras than lockstep's."""
+    return any(
+        len(rl.assigned) != len(rg['assigned']) or rl.status != rg['status']
+        for rl, rg in zip(lock, graph['demands'], strict=True)
+    )
+
+
+def _keep(run_dir: Path) -> str:
+    """A copy of a run that differed (bag, logs, results) where it outlives the bench."""
+    keep = Path(tempfile.gettempdir()) / 'activesurv-fidelity-kept'
+    keep.mkdir(exist_ok=True)
+    target = Path(tempfile.mkdtemp(prefix=f'{run_dir.name}-', dir=keep))
+    shutil.copytree(run_dir, target, dirs_exist_ok=True)
+    return str(target)
+
+
 def _compare(runs: list[tuple[str, str, int, list[Any], dict[str, Any]]]) -> dict[str, Any]:
     total = same_n = same_status = lost = 0
     disagreements = []
@@ -103,6 +123,7 @@ def run() -> dict[str, Any]:
         for seed in SEEDS
     }
     out: dict[str, Any] = {'seeds': SEEDS}
+    kept: list[str] = []
     with tempfile.TemporaryDirectory(prefix='activesurv-fidelity-') as tmp:
         for label in ('', 'hog_'):
             hog = None
@@ -112,8 +133,11 @@ def run() -> dict[str, Any]:
             try:
                 runs = []
                 for (s, m, seed), lock in lockstep.items():
-                    doc = _graph(s, m, seed, Path(tmp) / f'{label}{s}_{m}_{seed}')
+                    run_dir = Path(tmp) / f'{label}{s}_{m}_{seed}'
+                    doc = _graph(s, m, seed, run_dir)
                     runs.append((s, m, seed, lock, doc))
+                    if _differs(lock, doc):  # kept to be looked at: its bag, logs and frames
+                        kept.append(_keep(run_dir))
                     print(
                         f'  {label}{s} {m} seed {seed}: graph cameras '
                         + ''.join(str(len(d['assigned'])) for d in doc['demands'])
@@ -126,4 +150,5 @@ def run() -> dict[str, Any]:
                     hog.terminate()
             for key, value in _compare(runs).items():
                 out[f'{label}{key}'] = value
+    out['kept_runs'] = kept
     return out

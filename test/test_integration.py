@@ -329,3 +329,26 @@ def test_cpu_json_holds_the_whole_window_and_the_running_rate(graph_run: Path) -
     assert running['cores'] == pytest.approx(
         running['cpu_seconds'] / running['wall_seconds'], abs=1e-3
     )
+
+
+def test_viewers_markers_are_thinned_but_every_new_role_is_shown(graph_run: Path) -> None:
+    """The dispatcher's markers go out at most every ``marker_period`` (0.2 s) of its plans
+    (10 Hz), but a plan whose roles changed goes out at once: a viewer sees every assignment."""
+    from activesurv_recording.bagio import read_bag
+
+    def stamp(header: object) -> int:
+        s = header.stamp  # type: ignore[attr-defined]
+        return int(s.sec) * 10**9 + int(s.nanosec)
+
+    plans, shown = [], set()
+    for m in read_bag(graph_run / 'bag', {'/dispatch_plan', '/dispatch_markers'}):
+        if m.topic == '/dispatch_plan':
+            roles = tuple((a.camera_id, a.role, a.demand_index) for a in m.msg.assignments)
+            plans.append((stamp(m.msg.header), (m.msg.first_demand_index, roles)))
+        else:
+            shown |= {stamp(k.header) for k in m.msg.markers if k.action == k.ADD}
+    assert len(plans) > 50
+    assert 0.2 * len(plans) < len(shown) < 0.8 * len(plans), (len(shown), len(plans))
+    changed = [t for (t, key), (_, before) in zip(plans[1:], plans, strict=False) if key != before]
+    assert changed, 'no plan changed roles'
+    assert set(changed) <= shown, sorted(set(changed) - shown)

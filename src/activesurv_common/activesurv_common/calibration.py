@@ -26,6 +26,7 @@ from activesurv_common.camera_model import CameraModel
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, matrix_from_quaternion, quaternion_from_matrix
 from activesurv_common.mount import CameraMount, mount_from_dict, mount_to_dict
+from activesurv_common.yamlio import load_yaml
 
 OVERHEAD = 'overhead'
 
@@ -99,7 +100,7 @@ class Calibration:
 
 def _yaml(path: Path) -> dict[str, Any]:
     try:
-        data = yaml.safe_load(path.read_text())
+        data = load_yaml(path.read_text())
     except (OSError, yaml.YAMLError) as exc:
         raise CalibrationError(f'cannot read {path}: {exc}') from exc
     if not isinstance(data, dict):

@@ -27,6 +27,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.errors import CalibrationError
+from activesurv_common.yamlio import load_yaml
 
 Array = NDArray[np.float64]
 
@@ -265,7 +266,7 @@ class CameraModel:
     @staticmethod
     def load(path: Path | str) -> CameraModel:
         try:
-            data = yaml.safe_load(Path(path).read_text())
+            data = load_yaml(Path(path).read_text())
         except (OSError, yaml.YAMLError) as exc:
             raise CalibrationError(f'cannot read camera calibration {path}: {exc}') from exc
         if not isinstance(data, dict):

@@ -76,3 +76,34 @@ class PhaseLock:
             return False
         self._last = n
         return True
+
+
+class ViewThrottle:
+    """Messages only viewers read (markers), thinned: one per ``period`` of the caller's clock
+    at most, but one whose content changed in kind (its ``key``: a plan's roles, the set of
+    tracks) goes at once, so a viewer never waits for what matters. Building a MarkerArray in
+    Python and recording it cost the graph more than a plan's markers are worth at 10 Hz
+    (docs/performance.md).
+
+    Args:
+        period: s (>= 0); 0 lets every message through.
+    """
+
+    def __init__(self, period: float) -> None:
+        if not (math.isfinite(period) and period >= 0.0):
+            raise CommonError(f'period must be finite and >= 0, got {period}')
+        self.period = float(period)
+        self._last: float | None = None
+        self._key: object = None
+
+    def due(self, now: float, key: object = None) -> bool:
+        """Whether the message of ``now`` (s) with content ``key`` goes out (and note it)."""
+        if (
+            self.period > 0.0
+            and self._last is not None
+            and key == self._key
+            and self._last <= now < self._last + self.period - 1e-9
+        ):
+            return False
+        self._last, self._key = now, key
+        return True

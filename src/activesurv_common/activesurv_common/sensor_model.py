@@ -47,6 +47,7 @@ from activesurv_common.camera_model import CameraModel
 from activesurv_common.errors import SensorModelError
 from activesurv_common.geometry import Transform, as_vector3, unit
 from activesurv_common.geometry import bearing as geometry_bearing
+from activesurv_common.yamlio import load_yaml
 
 Array = NDArray[np.float64]
 VARIABLES = ('x', 'y', 'z', 'n_x', 'n_y', 'n_z')
@@ -235,7 +236,7 @@ class SensorModel:
         """Load a sensor model YAML; ``None`` loads the one shipped with the package."""
         p = default_model_path() if path is None else Path(path)
         try:
-            data = yaml.safe_load(p.read_text())
+            data = load_yaml(p.read_text())
         except (OSError, yaml.YAMLError) as exc:
             raise SensorModelError(f'cannot read sensor model {p}: {exc}') from exc
         if not isinstance(data, dict):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from activesurv_common.errors import CommonError
-from activesurv_common.pacing import Pacer, PhaseLock
+from activesurv_common.pacing import Pacer, PhaseLock, ViewThrottle
 
 
 def test_a_faster_stream_is_thinned_to_the_rate() -> None:
@@ -51,3 +51,22 @@ def test_phase_lock_takes_the_same_stamps_whatever_the_first(first: float) -> No
     lock = PhaseLock(10.0, 0.05)
     gap = [t for t in (0.05, 0.1, 0.2, 0.25, 0.3, 0.35) if lock.ready(t)]
     assert gap == [0.05, 0.2, 0.25, 0.35]  # 0.15 missing: 0.2 stands in for it
+
+
+def test_view_throttle_thins_moves_and_lets_changes_through_at_once() -> None:
+    throttle = ViewThrottle(0.2)
+    stamps = np.round(np.arange(0.0, 2.0, 0.1), 3)
+    passed = [float(t) for t in stamps if throttle.due(float(t), 'same roles')]
+    assert passed == pytest.approx(np.arange(0.0, 2.0, 0.2))  # one per period, on the grid
+    assert not throttle.due(1.95, 'same roles')
+    assert throttle.due(1.96, 'new roles')  # a change in kind goes at once
+    assert not throttle.due(1.97, 'new roles')
+    assert throttle.due(1.0, 'new roles')  # the clock went back (a replay restarted): send
+
+
+def test_view_throttle_period_zero_lets_all_through_and_bad_periods_are_refused() -> None:
+    every = ViewThrottle(0.0)
+    assert all(every.due(0.01 * i, 'k') for i in range(10))
+    for bad in (-0.1, float('nan'), float('inf')):
+        with pytest.raises(CommonError, match='period'):
+            ViewThrottle(bad)

@@ -196,3 +196,10 @@ def plan_markers(
         m.color.a = 0.9
         arr.markers.append(m)
     return arr
+
+
+def plan_view_key(plan: Plan) -> tuple[object, ...]:
+    """What a plan's markers show in kind (the demand served, each camera's role and demand): a
+    change goes to viewers at once, moves at the markers' period (``ViewThrottle``)."""
+    roles = tuple((c, a.role, a.demand_index) for c, a in sorted(plan.assignments.items()))
+    return (plan.first_index, roles)

@@ -9,7 +9,7 @@ Publishes:
     capture_request (activesurv_interfaces/CaptureRequest): ``capture_lead`` s before each
         demand instant, to the cameras assigned to it.
     dispatch_plan (activesurv_interfaces/DispatchPlan, latched), dispatch_markers
-        (visualization_msgs/MarkerArray), /diagnostics.
+        (visualization_msgs/MarkerArray, every ``marker_period``), /diagnostics.
 Parameters: see ``config/dispatcher.yaml``. The decisions are
 :class:`activesurv_dispatch.session.Dispatcher`'s; this node converts and publishes.
 """
@@ -24,6 +24,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
+from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, time_to_sec
 from activesurv_common.ros.node import run_node
@@ -35,6 +36,7 @@ from activesurv_dispatch.conversions import (
     horizon_to_demands,
     plan_markers,
     plan_to_msg,
+    plan_view_key,
     stage_faults,
 )
 from activesurv_dispatch.errors import DispatchError
@@ -58,6 +60,7 @@ PARAMS = (
     Param('capture_hold', 0.0, 's past an instant its cameras stay still', minimum=0.0),
     Param('replan_quiet', 0.05, 's past an instant before planning its cameras', minimum=0.0),
     Param('frame_id', 'world', 'frame of plans and markers'),
+    Param('marker_period', 0.2, 's between markers (at once on new roles); 0: all', minimum=0.0),
 )
 
 
@@ -80,8 +83,7 @@ class DispatcherNode(Node):
         model = SensorModel.load(str(v['sensor_model_file']) or None)
         self.session = Dispatcher(self.setup, model, config)
         self.frame_id = str(v['frame_id'])
-        self._camera_changes = (0, 0)
-
+        self._camera_changes, self._markers = (0, 0), ViewThrottle(float(v['marker_period']))
         self._goal_pubs = {
             s.camera_id: self.create_publisher(StageGoal, topics.goal(s.camera_id), qos.GOAL)
             for s in self.setup.sensors
@@ -162,9 +164,9 @@ class DispatcherNode(Node):
             self._plan_pub.publish(
                 plan_to_msg(out.plan, self.setup, s.planner.replans, self.frame_id)
             )
-            self._marker_pub.publish(
-                plan_markers(out.plan, self.setup, s.joints, s.horizon, self.frame_id)
-            )
+            if self._markers.due(out.plan.stamp, plan_view_key(out.plan)):
+                markers = plan_markers(out.plan, self.setup, s.joints, s.horizon, self.frame_id)
+                self._marker_pub.publish(markers)
         changes = (self.session.counts['cameras_lost'], self.session.counts['cameras_back'])
         if changes != self._camera_changes:
             self._camera_changes = changes

@@ -28,6 +28,7 @@ from activesurv_common.occlusion import (
     obstacles_from_list,
     obstacles_to_list,
 )
+from activesurv_common.yamlio import load_yaml
 from activesurv_dispatch.errors import DispatchConfigError
 from activesurv_stages.config import MotionClass, motion_class
 from activesurv_stages.kinematics import AxisLimits
@@ -231,7 +232,7 @@ def default_setup_path() -> Path:
 def load_setup(path: Path | str | None = None, motion: str = 'fast') -> Setup:
     p = default_setup_path() if path is None else Path(path)
     try:
-        data = yaml.safe_load(p.read_text())
+        data = load_yaml(p.read_text())
     except (OSError, yaml.YAMLError) as exc:
         raise DispatchConfigError(f'cannot read set-up {p}: {exc}') from exc
     return setup_from_dict(data, motion)

@@ -39,6 +39,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from activesurv_common.ros import fast_logging, local_topics
 from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
+from activesurv_common.yamlio import load_yaml
 from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
 
@@ -49,7 +50,7 @@ def load_members(path: Path) -> list[NodeSpec]:
     Raises:
         ValueError: if the file is not a members document.
     """
-    doc = yaml.safe_load(path.read_text())
+    doc = load_yaml(path.read_text())
     if not isinstance(doc, dict) or not isinstance(doc.get('members'), list):
         raise ValueError(f'{path}: expected a mapping with a list of members')
     out = []

@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
 
+from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
@@ -88,6 +89,7 @@ PARAMS = (
         'continuous: objects expected at once; > 1 tracks every marker of overhead/fixes',
         minimum=1,
     ),
+    Param('marker_period', 0.2, 's between markers (new tracks at once); 0: all', minimum=0.0),
 )
 
 
@@ -104,8 +106,8 @@ class PredictorNode(Node):
         self.frame_id = str(v['frame_id'])
         self._fix_times: deque[float] = deque(maxlen=60)
         self._innovations: deque[float] = deque(maxlen=300)
-        self._fixes = 0
-        self._bad_fixes = 0
+        self._fixes = self._bad_fixes = 0
+        self._markers = ViewThrottle(float(v['marker_period']))
 
         self._horizon_pub = self.create_publisher(
             DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED
@@ -166,9 +168,9 @@ class PredictorNode(Node):
         self._tracks_pub.publish(
             tracks_to_msg(out.tracks, out.stamp, self.frame_id, c.marker_height)
         )
-        self._markers_pub.publish(
-            track_markers(out.tracks, out.stamp, self.frame_id, c.marker_height)
-        )
+        if self._markers.due(out.stamp, [(k.object_id, k.confirmed) for k in out.tracks]):
+            markers = track_markers(out.tracks, out.stamp, self.frame_id, c.marker_height)
+            self._markers_pub.publish(markers)
         log = self.get_logger()
         for text in out.events:
             # rclpy ties a severity to each call site: one call per severity.

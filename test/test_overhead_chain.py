@@ -124,3 +124,42 @@ def test_a_containers_overhead_frames_reach_the_locator_in_process(rclpy_context
     finally:
         locator.destroy_node()
         camera.destroy_node()
+
+
+def test_a_containers_horizon_and_track_reach_dispatcher_and_frames_in_process(
+    rclpy_context: Any,
+) -> None:
+    """In the graph's ``core`` container (predictor, dispatcher, frames, in that order) the
+    horizon reaches the dispatcher and the accepted fix the frames node in the predictor's
+    publish call, with no DDS reader of them in the process: the recorder alone hears them
+    over DDS."""
+    from geometry_msgs.msg import PointStamped
+
+    from activesurv_common.ros import local_topics
+    from activesurv_dispatch.dispatcher_node import DispatcherNode
+    from activesurv_interfaces.msg import DemandHorizon
+    from activesurv_liveview.frames_node import FramesNode
+
+    local_topics.enable()
+    try:
+        predictor = PredictorNode(namespace='/lt_core')
+        dispatcher = DispatcherNode(namespace='/lt_core')
+        frames = FramesNode(namespace='/lt_core')
+    finally:
+        local_topics.enable(False)
+    try:
+        horizon = DemandHorizon()
+        horizon.header.stamp.sec = 7
+        predictor._horizon_pub.publish(horizon)
+        assert dispatcher.session.horizon_stamp == 7.0  # handled in the publish call itself
+        track = PointStamped()
+        track.header.stamp.sec, track.header.frame_id = 7, 'world'
+        before = len(frames._pending)
+        predictor._track_pub.publish(track)
+        sent = frames._pending[before:] if frames._batched else []
+        assert not frames._batched or [t.child_frame_id for t in sent] == ['object']
+        assert predictor._horizon_pub.get_subscription_count() == 0  # no DDS reader here
+        assert predictor._track_pub.get_subscription_count() == 0
+    finally:
+        for node in (frames, dispatcher, predictor):
+            node.destroy_node()

@@ -25,7 +25,7 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.pacing import ViewThrottle
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -96,9 +96,8 @@ class DispatcherNode(Node):
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
-        self.create_subscription(
-            DemandHorizon, topics.DEMAND_HORIZON, self._on_horizon, qos.LATCHED
-        )
+        horizon, cb = topics.DEMAND_HORIZON, self._on_horizon  # the predictor's, in process
+        local_topics.subscription(self, DemandHorizon, horizon, cb, qos.LATCHED, only_local=True)
         for s in self.setup.sensors:
             cid = s.camera_id
             self.create_subscription(

@@ -27,7 +27,7 @@ from tf2_msgs.msg import TFMessage
 from activesurv_common import frames
 from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, matrix_from_quaternion
-from activesurv_common.ros import qos, topics
+from activesurv_common.ros import local_topics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, transform_stamped
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -83,7 +83,8 @@ class FramesNode(Node):
                 self._on_joints(s.camera_id),
                 qos.SENSOR,
             )
-        self.create_subscription(PointStamped, topics.OVERHEAD_TRACK, self._on_track, qos.SENSOR)
+        track, cb = topics.OVERHEAD_TRACK, self._on_track  # the predictor's, in process
+        local_topics.subscription(self, PointStamped, track, cb, qos.SENSOR, only_local=True)
         self.get_logger().info(f'{len(edges)} static frames; {len(self.setup.sensors)} stages')
 
     def _on_joints(self, camera_id: str) -> Callable[[JointState], None]:

@@ -21,7 +21,7 @@ from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.pacing import ViewThrottle
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -109,10 +109,10 @@ class PredictorNode(Node):
         self._fixes = self._bad_fixes = 0
         self._markers = ViewThrottle(float(v['marker_period']))
 
-        self._horizon_pub = self.create_publisher(
-            DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED
-        )
-        self._track_pub = self.create_publisher(PointStamped, topics.OVERHEAD_TRACK, qos.SENSOR)
+        # In process first to the dispatcher and the frames node of its container.
+        pub, track = local_topics.publisher, topics.OVERHEAD_TRACK
+        self._horizon_pub = pub(self, DemandHorizon, topics.DEMAND_HORIZON, qos.LATCHED)
+        self._track_pub = pub(self, PointStamped, track, qos.SENSOR)
         self._tracks_pub = self.create_publisher(ObjectTracks, topics.OBJECT_TRACKS, qos.STATE)
         self._markers_pub = self.create_publisher(
             MarkerArray, topics.OBJECT_TRACK_MARKERS, qos.LATCHED

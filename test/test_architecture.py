@@ -93,18 +93,12 @@ def imports(path: Path) -> set[str]:
     return out
 
 
-# The two node runners of the launch package construct and spin nodes: that is their job, as a
-# node module's is (a container process, and composition in this process).
-NODE_RUNNERS = {('activesurv_launch', 'compose'), ('activesurv_launch', 'container')}
-
-
 def is_ros_shell(package: str, path: Path) -> bool:
-    """Modules allowed to touch rclpy and messages: nodes, conversions, common.ros, the node
-    runners, bringup (the orchestrator)."""
+    """Modules allowed to touch rclpy and messages: nodes, conversions, a package's ``ros``
+    subpackage (common's, the launcher's container and composition), bringup (the orchestrator)."""
     rel = path.relative_to(SRC / package / package)
     return (
         package == 'activesurv_bringup'
-        or (package, path.stem) in NODE_RUNNERS
         or rel.parts[0] == 'ros'
         or path.stem.endswith('_node')
         or path.stem == 'conversions'

@@ -81,11 +81,11 @@ def process_rss_bytes(pid: int) -> int | None:
     return None
 
 
-CONTAINER_MODULE = 'activesurv_launch.container'
+CONTAINER_MODULE = 'activesurv_launch.ros.container'
 
 
 def container(name: str, members: Sequence[NodeSpec], host: str = '', nice: int = 0) -> NodeSpec:
-    """A container process running ``members`` (:mod:`activesurv_launch.container`)."""
+    """A container process running ``members`` (:mod:`activesurv_launch.ros.container`)."""
     return NodeSpec(name, CONTAINER_MODULE, host=host, members=tuple(members), nice=nice)
 
 

@@ -1,7 +1,7 @@
 """One interface for the ways a run's nodes are started: processes or one composed process.
 
 :class:`~activesurv_launch.launcher.Launcher` (a process per node or per container) and
-:class:`~activesurv_launch.compose.Composition` (every node on one executor in this process)
+:class:`~activesurv_launch.ros.compose.Composition` (every node on one executor in this process)
 both are a :class:`NodeRunner`; an orchestrator starts nodes in groups, checks on them, stops
 them in reverse order and reads what they cost without knowing which it has.
 """

@@ -33,9 +33,9 @@ from activesurv_common.calibration import pose_to_list
 from activesurv_common.ros import qos, topics
 from activesurv_dispatch.sensors import Sensor, setup_to_dict
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
-from activesurv_launch.compose import Composition
 from activesurv_launch.launcher import Launcher, NodeSpec, container
 from activesurv_launch.netns import NetnsHosts
+from activesurv_launch.ros.compose import Composition
 from activesurv_launch.runner import NodeRunner
 from activesurv_launch.session import GraphSession
 from activesurv_recording.run_record import RunRecord

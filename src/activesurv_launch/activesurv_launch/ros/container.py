@@ -1,6 +1,6 @@
 """A node container: several of our nodes in one process, as ``ros2 component`` containers do.
 
-``python -m activesurv_launch.container MEMBERS.yaml`` constructs every node listed
+``python -m activesurv_launch.ros.container MEMBERS.yaml`` constructs every node listed
 in the file (the same node classes the console scripts run, with their names, namespaces,
 remappings and parameters) and spins them on one executor (rclpy's ``EventsExecutor``, see
 :func:`activesurv_common.ros.node.make_executor`). One Python process per group
@@ -40,8 +40,8 @@ from rclpy.signals import SignalHandlerOptions
 from activesurv_common.ros import fast_logging, local_topics
 from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
 from activesurv_common.yamlio import load_yaml
-from activesurv_launch.compose import build_node, share_clock
 from activesurv_launch.launcher import NodeSpec
+from activesurv_launch.ros.compose import build_node, share_clock
 
 
 def load_members(path: Path) -> list[NodeSpec]:
@@ -72,7 +72,7 @@ def load_members(path: Path) -> list[NodeSpec]:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) < 1 or args[0].startswith('-'):
-        print('usage: python -m activesurv_launch.container MEMBERS.yaml', file=sys.stderr)
+        print('usage: python -m activesurv_launch.ros.container MEMBERS.yaml', file=sys.stderr)
         return 2
     try:
         members = load_members(Path(args[0]))

@@ -1,0 +1,1 @@
+"""The ROS shell of the launcher: the container process and in-process composition (rclpy)."""

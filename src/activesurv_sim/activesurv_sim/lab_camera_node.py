@@ -11,8 +11,7 @@ calibration the lab's driver ships (``camera_info_file``). What the carriage car
 what the lab is used for: the object while something reports it (a hardware run's
 ``table_runner`` publishes ``object_state``), else the commissioning boards at the position
 the table controller reports (``xy_table/stage/joint_states``).
-
-Parameters: those of ``sim_camera`` and ``exposure_delay``, ``jitter``, ``drop_rate``.
+Parameters: ``sim_camera``'s but its clock's, and ``exposure_delay``, ``jitter``, ``drop_rate``.
 """
 
 from __future__ import annotations
@@ -56,7 +55,8 @@ LAB_PARAMS = (
     Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
-CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name != 'frame_phase')  # own clock
+OWN_CLOCK = ('frame_phase', 'own_trigger')  # it exposes on its own clock
+CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name not in OWN_CLOCK)
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
 
 

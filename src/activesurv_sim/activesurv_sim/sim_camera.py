@@ -154,6 +154,7 @@ class SimulatedCamera:
         self._ahead: dict[
             float, tuple[NDArray[np.uint8], NDArray[np.float64], NDArray[np.float64]]
         ] = {}
+        self._released: dict[float, NDArray[np.float64]] = {}  # the planned state it showed
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -252,6 +253,40 @@ class SimulatedCamera:
             rates = (rate, q_dot)
         self._ahead[t] = (self.render_state(state, q_used, rates), state, q_used)
         return True
+
+    def release(self, t: float) -> NDArray[np.uint8] | None:
+        """The frame of ``t`` rendered ahead, taken at the instant on the camera's own trigger,
+        or None (it then waits for the states of ``t``: :meth:`frame_at`).
+
+        Taken only if the stage's state stamped ``t`` (the commanded profile's, known ahead
+        and replaced by every new goal) is the one it was rendered with. The object's is its
+        planned state, the simulated table's path being fixed ahead;
+        :meth:`released_differs` checks it when the table's state of ``t`` arrives.
+        """
+        ahead = self._ahead.get(t)
+        if ahead is None:
+            return None
+        frame, state, q = ahead
+        if self.joint_names:
+            now = self.joints.at(t) if self.joints.has(t) else None
+            if now is None or not np.allclose(now, q, rtol=0.0, atol=1e-6):
+                return None
+        del self._ahead[t]
+        self._planned.pop(t, None)
+        self._released[t] = state
+        for old in sorted(self._released)[:-64]:  # instants whose table state never came
+            del self._released[old]
+        return frame
+
+    def released_differs(self, t: float) -> bool:
+        """Whether the frame released at ``t`` showed an object state other than the table's
+        own state of ``t``, once every lane's has arrived (checked once; False until then)."""
+        if t not in self._released or not all(s.has(t) for s in self.slots.values()):
+            return False
+        shown = self._released.pop(t)
+        parts = [self.slots[k].at(t) for k in sorted(self.slots)]
+        truth = np.concatenate([p for p in parts if p is not None])
+        return shown.shape != truth.shape or not np.allclose(shown, truth, rtol=0.0, atol=1e-6)
 
     def frame_at(self, t: float, hold: float = 0.2) -> tuple[NDArray[np.uint8], bool]:
         """The frame exposed at ``t``, and whether it was rendered ahead.

@@ -6,8 +6,11 @@ Subscribes:
     capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
         the demand instant (like a hardware trigger armed ahead of time).
     sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth (and its rates)
-        at a requested instant as already determined; the frame is rendered ahead with it,
-        published at the instant if the states then match (``activesurv_sim.sim_camera``).
+        at a requested instant as already determined; the frame is rendered ahead with it.
+        It goes out at the instant on the camera's own trigger (``own_trigger``: a steady
+        timer on ``/sim/clock_origin``) if the stage's state of the instant is still the one
+        it was rendered with, else once the states of the instant match
+        (``activesurv_sim.sim_camera``).
 Publishes: <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
 Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
 """
@@ -40,6 +43,7 @@ from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
 from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
+from activesurv_sim.ros.ahead import AheadFrames
 from activesurv_sim.sim_camera_params import PARAMS
 from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
@@ -75,14 +79,20 @@ class SimCameraNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
-        if bool(g('render_ahead').value):
-            planned = topics.planned_joint_states(self.camera_id)
-            self.create_subscription(
-                ObjectState, topics.PLANNED_OBJECT_STATE, self._on_planned_object, qos.EVENTS
-            )
-            if self.sim.joint_names:
-                self.create_subscription(JointState, planned, self._on_planned_joints, qos.EVENTS)
         self._pending: set[float] = set()
+        self._ahead = (
+            AheadFrames(
+                self,
+                self.sim,
+                self.camera_id,
+                self._pending,
+                lambda t, frame: self._send(t, frame, True),
+                bool(g('own_trigger').value),
+                lambda: float(self.get_parameter('trigger_delay').value),
+            )
+            if bool(g('render_ahead').value)
+            else None
+        )
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
         rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
@@ -94,8 +104,7 @@ class SimCameraNode(Node):
             self._preview_pub = self.create_publisher(
                 Image, topics.preview(self.camera_id), qos.SENSOR_RELIABLE
             )
-        self.frames_published = 0
-        self.frames_ahead = 0
+        self.frames_published = self.frames_ahead = self.released_differing = 0
         self._frozen: Any = None
 
     def _now(self) -> float:
@@ -105,8 +114,11 @@ class SimCameraNode(Node):
         t = time_to_sec(msg.header.stamp)
         if not self.sim.add_object(t, object_state_vector(msg), int(msg.slot)):
             self.get_logger().warning('ignored a non-finite object state', throttle_duration_sec=5)
-        else:
-            self._on_state(t)
+            return
+        if self.sim.released_differs(t):
+            self.released_differing += 1
+            self.get_logger().error(f'the frame of t={t:.3f} showed a state the table left')
+        self._on_state(t)
 
     def _on_table(self, msg: JointState) -> None:
         xy = joint_vector(msg, TABLE_JOINTS)
@@ -127,27 +139,8 @@ class SimCameraNode(Node):
             t = time_to_sec(msg.demand_instant)
             self._pending.add(t)
             self._on_tick()
-            self._ahead(t)  # the truth may be planned already
-
-    def _on_planned_object(self, msg: ObjectState) -> None:
-        t, v = time_to_sec(msg.header.stamp), msg.velocity
-        self.sim.plan(t, object_state_vector(msg), None, int(msg.slot), [v.x, v.y, v.z])
-        self._ahead(t)
-
-    def _on_planned_joints(self, msg: JointState) -> None:
-        names, t = self.sim.joint_names, time_to_sec(msg.header.stamp)
-        q = joint_vector(msg, names)
-        if q is not None:
-            self.sim.plan(t, q=q, q_rate=joint_vector(msg, names, 'velocity'))
-            self._ahead(t)
-
-    def _ahead(self, t: float) -> None:
-        """Render the frame of ``t`` now if it is requested and its truth planned."""
-        if t in self._pending:
-            try:
-                self.sim.render_ahead(t)
-            except (SimError, CommonError) as exc:
-                self.get_logger().warning(f'no frame ahead for t={t:.3f}: {exc}')
+            if self._ahead is not None:
+                self._ahead.render(t)  # the truth may be planned already
 
     def _publish(self, t: float, preview: bool = False) -> None:
         hold = float(self.get_parameter('state_hold').value)
@@ -158,6 +151,9 @@ class SimCameraNode(Node):
         except (SimError, CommonError) as exc:
             self.get_logger().warning(f'no frame at t={t:.3f}: {exc}', throttle_duration_sec=2)
             return
+        self._send(t, gray, ahead, preview)
+
+    def _send(self, t: float, gray: Any, ahead: bool, preview: bool = False) -> None:
         stamp = sec_to_time(t)
         if bool(self.get_parameter('inject_frozen').value):
             if self._frozen is None:

@@ -50,4 +50,5 @@ PARAMS = (
     Param('supersample', 8, 'edge supersampling per axis', minimum=1, maximum=16),
     Param('inject_frozen', False, 'fault: keep sending the first frame'),
     Param('render_ahead', True, 'render a requested frame when its truth is planned'),
+    Param('own_trigger', True, 'a frame rendered ahead goes out at its instant, own clock'),
 )

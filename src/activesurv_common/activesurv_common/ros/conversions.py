@@ -7,6 +7,7 @@ state. The package-specific ones (plans, observations, estimates) live in each p
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -90,14 +91,18 @@ def image_to_gray(msg: Image) -> np.ndarray:
 
 
 def gray_to_image(gray: np.ndarray, frame_id: str, stamp: Time) -> Image:
-    msg = Image()
+    # The pixels copied once, into the message's own array: a checking message keeps the
+    # array it is given, an unchecking one copies it again (on a frame's critical path).
+    msg = Image(check_fields=True)
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     msg.height, msg.width = int(gray.shape[0]), int(gray.shape[1])
     msg.encoding = 'mono8'
     msg.is_bigendian = 0
     msg.step = msg.width
-    msg.data = gray.tobytes()
+    data = array.array('B')
+    data.frombytes(np.ascontiguousarray(gray, dtype=np.uint8).data)
+    msg.data = data
     return msg
 
 

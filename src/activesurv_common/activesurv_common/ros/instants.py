@@ -20,6 +20,10 @@ from std_msgs.msg import Float64MultiArray
 
 from activesurv_common.ros import qos, topics
 
+LEAD = 0.002
+"""s a timer is set ahead of its instant, then sleeps to it: a timer's callback comes about
+1 ms late here (the executor's timer thread wakes, then this one), a sleep's wake-up 0.1 ms."""
+
 
 class InstantTimers:
     """One-shot timers at simulated instants, each on the steady clock."""
@@ -53,7 +57,8 @@ class InstantTimers:
         if self._origin is None or t in self._timers or not math.isfinite(t):
             return False
         wall0, rate = self._origin
-        delay = max(wall0 + t / rate - time.monotonic(), 0.0)
+        due = wall0 + t / rate
+        delay = max(due - LEAD - time.monotonic(), 0.0)
 
         def fire() -> None:
             timer = self._timers.pop(t, None)
@@ -61,6 +66,9 @@ class InstantTimers:
                 return  # fired already (a zero-delay timer may be ready twice)
             timer.cancel()
             self._node.destroy_timer(timer)
+            early = due - time.monotonic()
+            if early > 0.0:
+                time.sleep(early)
             callback()
 
         self._timers[t] = self._node.create_timer(delay, fire, clock=self._steady)

@@ -121,3 +121,60 @@ def test_only_local_takes_the_process_publisher_alone_and_adds_no_reader(
     finally:
         for node in (stage, camera, other):
             node.destroy_node()
+
+
+def test_publish_together_hands_every_message_over_before_any_goes_over_dds(
+    rclpy_context: Any, spin_until: Callable[..., bool], enabled: None
+) -> None:
+    """A camera's intrinsics and frame: its imager has both, in order, before either DDS copy
+    is written; a reader in another process hears both, each once."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    camera = rclpy_context.create_node('together_camera')
+    imager = rclpy_context.create_node('together_imager')
+    viewer = rclpy_context.create_node('together_viewer')
+    steps: list[str] = []
+    remote: list[str] = []
+    try:
+        info_pub = local_topics.publisher(camera, CameraInfo, '/lt/info', qos.SENSOR_RELIABLE)
+        image_pub = local_topics.publisher(camera, Image, '/lt/frame', qos.SENSOR_RELIABLE)
+        for pub, msg_type, topic in (
+            (info_pub, CameraInfo, '/lt/info'),
+            (image_pub, Image, '/lt/frame'),
+        ):
+            name = topic.rsplit('/', 1)[1]
+            local_topics.subscription(
+                imager,
+                msg_type,
+                topic,
+                lambda m, n=name: steps.append(f'local {n}'),
+                qos.SENSOR_RELIABLE,
+            )
+            viewer.create_subscription(
+                msg_type, topic, lambda m, n=name: remote.append(n), qos.SENSOR_RELIABLE
+            )
+            writer = pub._pub  # the DDS writer: note each write
+
+            def write(msg: Any, n: str = name, w: Any = writer.publish) -> None:
+                steps.append(f'dds {n}')
+                w(msg)
+
+            writer.publish = write
+        assert spin_until(
+            [camera, imager, viewer],
+            lambda: (
+                info_pub.get_subscription_count() >= 2 and image_pub.get_subscription_count() >= 2
+            ),
+        )
+        info = CameraInfo()
+        info.header.stamp.sec, info.header.frame_id = 5, 'cam1_optical_frame'
+        local_topics.publish_together((info_pub, info), (image_pub, _image(5)))
+        assert steps == ['local info', 'local frame', 'dds info', 'dds frame']
+        assert spin_until([camera, imager, viewer], lambda: len(remote) >= 2)
+        end = time.monotonic() + 0.5
+        spin_until([camera, imager, viewer], lambda: time.monotonic() > end, 2.0)
+        assert sorted(remote) == ['frame', 'info']
+        assert len(steps) == 4  # the imager's own DDS copies were dropped
+    finally:
+        for node in (camera, imager, viewer):
+            node.destroy_node()

@@ -162,9 +162,11 @@ class SimCameraNode(Node):
         if preview:  # for viewers: no camera_info, no imaging
             self._preview_pub.publish(gray_to_image(gray, self.frame_id, stamp))
             return
-        # The intrinsics first: a consumer in the container then has them for the frame.
-        self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
-        self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
+        # The intrinsics first: a consumer in the container then has them for the frame, and
+        # its imager images the frame before either goes over DDS.
+        info = camera_info_from_model(self.info_model, self.frame_id, stamp)
+        image = gray_to_image(gray, self.frame_id, stamp)
+        local_topics.publish_together((self._info_pub, info), (self._image_pub, image))
         self.frames_published += 1
         self.frames_ahead += int(ahead)
 

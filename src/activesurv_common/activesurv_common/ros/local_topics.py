@@ -66,8 +66,16 @@ class LocalPublisher:
         _PUBLISHERS.add(self.topic_name)
 
     def publish(self, msg: Any) -> None:
+        self.publish_local(msg)
+        self._pub.publish(msg)
+
+    def publish_local(self, msg: Any) -> None:
+        """To this process's subscriptions of the topic only."""
         for callback in list(_SUBSCRIBERS.get(self.topic_name, ())):
             callback(msg)
+
+    def publish_remote(self, msg: Any) -> None:
+        """Over DDS only."""
         self._pub.publish(msg)
 
     def get_subscription_count(self) -> int:
@@ -79,6 +87,17 @@ def publisher(node: Node, msg_type: Any, topic: str, qos_profile: QoSProfile) ->
     if not _ENABLED[0]:
         return node.create_publisher(msg_type, topic, qos_profile)
     return LocalPublisher(node, msg_type, topic, qos_profile)
+
+
+def publish_together(*items: tuple[Any, Any]) -> None:
+    """Publish each ``(publisher, message)`` in process first, all in order, then over DDS:
+    the process's consumers act on them all (a camera's imager on its intrinsics and its
+    frame) before any DDS copy is made. Plain rclpy publishers publish in the second pass."""
+    for pub, msg in items:
+        if isinstance(pub, LocalPublisher):
+            pub.publish_local(msg)
+    for pub, msg in items:
+        (pub.publish_remote if isinstance(pub, LocalPublisher) else pub.publish)(msg)
 
 
 def subscription(

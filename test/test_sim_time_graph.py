@@ -219,3 +219,42 @@ def test_xy_table_keeps_its_states_on_a_phased_grid(
     # Each on its grid point (late by the timer's wake-up at most a quarter period), one a period.
     assert all(-0.25 <= p - round(p) < 0.25 for p in periods), stamps
     assert len({round(p) for p in periods}) == len(periods), stamps
+
+
+@pytest.mark.graph
+def test_a_held_xy_table_starts_time_only_when_released(
+    tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """Started with the graph (``hold_until_released``), the table holds time at 0 with its
+    readers all matched, past its ``wait_timeout`` too, until the orchestrator's latched
+    release; then time runs."""
+    import time
+
+    from std_msgs.msg import Empty
+
+    from activesurv_launch.launcher import Launcher, NodeSpec
+
+    parameters = {
+        'publish_rate': 10.0,
+        'wait_for_subscribers': 1,
+        'wait_timeout': 0.5,
+        'hold_until_released': True,
+    }
+    specs = [NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=parameters)]
+    peer = rclpy_context.create_node('held_peer')
+    ticks = _clock_stamps(peer)
+    stamps = _state_stamps(peer)
+    try:
+        with Launcher(specs, workdir=tmp_path) as launcher:
+            # Held: ticks at 0 (the table is up and heard), no state, for well past the timeout.
+            assert spin_until([peer], lambda: launcher.check() is None and len(ticks) > 5, 30.0)
+            end = time.monotonic() + 1.5
+            spin_until([peer], lambda: time.monotonic() > end, 3.0)
+            assert set(ticks) == {0.0}
+            assert not stamps
+            release = peer.create_publisher(Empty, topics.TIME_RELEASE, qos.LATCHED)
+            release.publish(Empty())
+            assert spin_until([peer], lambda: len(stamps) > 5 and max(ticks) > 0.4, 20.0)
+            launcher.check()
+    finally:
+        peer.destroy_node()

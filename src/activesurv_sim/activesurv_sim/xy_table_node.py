@@ -17,6 +17,9 @@ Subscribes:
         the states): at most one per that much simulated time. On the request it also
         publishes ``sim/planned_object_state``, the state its program will reach then (the
         simulated cameras render ahead with it; see ``sim_camera``).
+With ``hold_until_released`` it holds time at 0 (as it does for the readers it waits for) until
+the latched ``/sim/time_release`` (std_msgs/Empty) comes: the orchestrator starts it with the
+graph and releases it once every node is up.
 Parameters: see ``config/xy_table.yaml`` (path_type stream: ``activesurv_sim.stream``).
 """
 
@@ -30,7 +33,7 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Empty, Float64MultiArray
 
 from activesurv_common.pacing import PhaseLock
 from activesurv_common.ros import qos, topics
@@ -62,6 +65,10 @@ class XYTableNode(Node):
         wait = (int(g('wait_for_subscribers').value), int(g('wait_for_clock_subscribers').value))
         self._wait_for = dict(zip(('object_state', '/clock'), wait, strict=True))
         self._wait_timeout = float(g('wait_timeout').value)
+        # Started with the graph, time held until the orchestrator has every node up.
+        self._held = bool(g('hold_until_released').value)
+        if self._held:
+            self.create_subscription(Empty, topics.TIME_RELEASE, self._on_release, qos.LATCHED)
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
         )
@@ -104,9 +111,15 @@ class XYTableNode(Node):
             return (time.monotonic() - self._wall0) * self.rtf
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _on_release(self, msg: Empty) -> None:
+        if self._held:
+            self._held, self._created = False, time.monotonic()  # the timeout counts from now
+
     def _ready(self) -> bool:
         if self._wall0 is not None:
             return True
+        if self._held:
+            return False
         heard = {'object_state': self._pub.get_subscription_count()}
         if self._clock_pub is not None:
             heard['/clock'] = self._clock_pub.get_subscription_count()

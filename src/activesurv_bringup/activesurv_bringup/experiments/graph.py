@@ -1,11 +1,12 @@
 """Graph mode: one experiment run as the real node graph over DDS, recorded to a bag.
 
 Like a launch file, :func:`graph_specs` lists every node with its parameters; :func:`run_graph`
-starts them as processes, the recorder first and the xy table (which owns ``/clock``) last, once
-every node has joined the graph, so simulated time starts only when nothing can miss the object
-entering. A monitor node in this process shows progress (demand j of m, simulated time) and
-ends the run when every demand has an answer or time runs out. The nodes are then stopped in
-reverse order, the recorder last.
+starts them as processes, the recorder first; the simulated xy table (which owns ``/clock``)
+starts with them but holds simulated time at 0 until released once every node has joined the
+graph (a table that cannot be held starts last then), so simulated time starts only when
+nothing can miss the object entering. A monitor node in this process shows progress (demand
+j of m, simulated time) and ends the run when every demand has an answer or time runs out. The
+nodes are then stopped in reverse order, the recorder last.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Any
 
 import yaml
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
+from std_msgs.msg import Empty, String
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
@@ -311,7 +312,7 @@ def group_processes(specs: Sequence[NodeSpec], alone: Sequence[str] = ()) -> lis
     camera and its locator share ``overhead``; predictor and dispatcher ``core``; both run
     at a lower CPU priority (:data:`BACKGROUND`: they plan ahead, and at a demand instant
     the imagers and fusion are what the estimate waits for). The recorder (its disk writes
-    must not stall anyone), the xy table (it starts last and owns /clock), fusion (the last
+    must not stall anyone), the xy table (it owns /clock and holds it), fusion (the last
     step of every demand, never queued behind a replan) and the nodes named in ``alone``
     (nodes to kill and restart, load generators) run as processes of their own. Start order
     is kept: a group starts where its first member stood.
@@ -406,6 +407,10 @@ class RunMonitor(Observer):
 
     def missing_nodes(self) -> set[str]:
         return self.missing(self.expected_nodes)
+
+    def release_time(self) -> None:
+        """Let a held simulated xy table start the time (latched: heard however late)."""
+        self.node.create_publisher(Empty, topics.TIME_RELEASE, qos.LATCHED).publish(Empty())
 
 
 def _chaos(
@@ -541,8 +546,15 @@ def _run(
     startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
     env = dict(os.environ)
+    table = _held_for_clock(specs, opts)
+    # The simulated table starts with the graph and holds time at 0 until released below:
+    # its own start (imports, error maps: 0.6 s of a core) overlaps the others'.
+    early = _owns_clock(specs[-1], opts)
+    if early:
+        table = replace(table, parameters={**table.parameters, 'hold_until_released': True})
+    first = [*specs[:-1], table] if early else specs[:-1]
     monitor = RunMonitor(
-        [m.name for s in specs[:-1] for m in (s.members or (s,))],
+        [m.name for s in first for m in (s.members or (s,))],
         opts.time_origin,
         opts.namespace,
     )
@@ -556,21 +568,28 @@ def _run(
                 if hosts is not None
                 else None
             )
-            launcher = Launcher(specs[:-1], workdir=out_dir / 'logs', env=env, hosts=prefixes)
+            launcher = Launcher(first, workdir=out_dir / 'logs', env=env, hosts=prefixes)
         # SIGINT, SIGTERM and SIGHUP stop the run cleanly: the graph is drained and stopped,
         # then StopRequested (the bag is closed by then).
         with GraphSession(
-            launcher, specs[:-1], monitor.missing_nodes, monitor.spin, startup_timeout
+            launcher, first, monitor.missing_nodes, monitor.spin, startup_timeout
         ) as graph:
             if before_start is not None:
                 before_start(monitor, progress)
             n_nodes = sum(len(s.members) or 1 for s in specs)
-            last = (
-                'the xy table and simulated time' if opts.time_origin is None else specs[-1].name
-            )
-            progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
-            graph.raise_if_stopping()
-            graph.start([_held_for_clock(specs, opts)])
+            if early:
+                progress(f'{n_nodes} nodes up in {len(specs)} processes; simulated time starts')
+                graph.raise_if_stopping()
+                monitor.release_time()
+            else:
+                last = (
+                    'the xy table and simulated time'
+                    if opts.time_origin is None
+                    else specs[-1].name
+                )
+                progress(f'{n_nodes} nodes up in {len(specs) - 1} processes; starting {last}')
+                graph.raise_if_stopping()
+                graph.start([table])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
     return bag
 
@@ -653,12 +672,20 @@ def _held_for_clock(specs: Sequence[NodeSpec], opts: RunOptions) -> NodeSpec:
     readers: one matched late stays at time 0 while the rest run (at rtf 3 a dispatcher at
     t = 0 for 8 simulated seconds answered seven demands with no camera)."""
     table = specs[-1]
-    if table.module != 'activesurv_sim.xy_table_node' or opts.compose:
-        return table
-    if not table.parameters.get('publish_clock', True) or opts.time_origin is not None:
+    if not _owns_clock(table, opts):
         return table
     readers = clock_readers(specs[:-1]) + 1  # + the monitor
     return replace(table, parameters={**table.parameters, 'wait_for_clock_subscribers': readers})
+
+
+def _owns_clock(table: NodeSpec, opts: RunOptions) -> bool:
+    """``table`` is the simulated xy table owning /clock, in a process of its own."""
+    return (
+        table.module == 'activesurv_sim.xy_table_node'
+        and not opts.compose
+        and bool(table.parameters.get('publish_clock', True))
+        and opts.time_origin is None
+    )
 
 
 RESOURCE_PERIOD = 10.0  # wall s between samples of each process's memory and CPU

@@ -11,6 +11,7 @@ CLOCK = '/clock'
 # Simulation only: the owner of /clock's mapping, simulated time = (steady time - data[0]) *
 # data[1] (std_msgs/Float64MultiArray, latched), so nodes on its host read the time exactly.
 CLOCK_ORIGIN = '/sim/clock_origin'
+TIME_RELEASE = '/sim/time_release'  # latched std_msgs/Empty: a held simulated time may start
 # Simulation only: the truth at a demand instant as already determined before it (the table's
 # programmed path; a stage's motion when no new goal comes), so a simulated camera can render
 # ahead what it will expose. Real drivers publish nothing of the kind.

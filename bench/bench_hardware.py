@@ -46,7 +46,7 @@ import numpy as np
 
 from activesurv_bringup.rig.lab import EXPOSURE_DELAY, table_controller
 from activesurv_bringup.rig.rigs import nominal
-from activesurv_evaluation.timing import camera_delays, critical_compute
+from activesurv_evaluation.timing import camera_delays, critical_compute, frames_bound
 from activesurv_sim.rig import save_rig
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
@@ -137,11 +137,26 @@ def run() -> dict[str, Any]:
         delays = camera_delays(session['demands'])
         delay = statistics.median(delays) if delays else EXPOSURE_DELAY
         bound, declared = delay + rest, EXPOSURE_DELAY + rest
+        # Each demand against its own frames: the slowest of its cameras' arrivals + compute.
+        own = [
+            (x['latency'], b)
+            for x in session['demands']
+            if x.get('latency') is not None and (b := frames_bound(x)) is not None
+        ]
         out.update(
             camera_delay_ms=round(1e3 * delay, 1),
             latency_bound_ms=round(1e3 * bound, 1),
             surveil_latency_to_bound=round(statistics.median(lat) / bound, 2) if lat else None,
             latency_bound_nominal_ms=round(1e3 * declared, 1),
+            camera_delay_p90_ms=round(1e3 * float(np.percentile(delays, 90)), 1)
+            if delays
+            else None,
+            frames_bound_ms=(
+                round(1e3 * statistics.median(b for _, b in own), 1) if own else None
+            ),
+            surveil_latency_to_frames_bound=(
+                round(statistics.median(lat_j / b for lat_j, b in own), 2) if own else None
+            ),
             surveil_latency_to_nominal_bound=(
                 round(statistics.median(lat) / declared, 2) if lat else None
             ),

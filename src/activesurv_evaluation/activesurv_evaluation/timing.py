@@ -208,6 +208,19 @@ def camera_delays(demands: Iterable[dict[str, Any]]) -> list[float]:
     return out
 
 
+def frames_bound(demand: dict[str, Any]) -> float | None:
+    """A demand's own bound (s after its instant): its last frame's arrival at its imager plus
+    the compute on its critical path, or None where either is unknown. It holds each camera's
+    own delay and exposure offset for this demand, where a bound from the median delay does not
+    (the estimate waits for the slowest of its cameras). A frame taken because a nearer one
+    never came is counted at its own arrival, though the imager had to wait for the next one:
+    that wait stays in the latency above this bound."""
+    timing = demand.get('timing') or {}
+    frames = [float(v) for v in (timing.get('frames') or {}).values() if v is not None]
+    spent = critical_compute(timing)
+    return max(frames) + spent if frames and spent is not None else None
+
+
 STEPS = ('stage_state', 'frames', 'observations', 'estimate')
 
 

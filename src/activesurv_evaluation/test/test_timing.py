@@ -12,6 +12,7 @@ from activesurv_evaluation.timing import (
     compute_on_cores,
     critical_compute,
     empty_timing,
+    frames_bound,
     largest_wait,
     plot_budget,
 )
@@ -126,3 +127,15 @@ def test_a_cameras_own_delay_is_its_frames_arrival_after_exposure() -> None:
         {'frame_offsets': {}, 'timing': {}},
     ]
     assert [round(x, 9) for x in camera_delays(demands)] == [0.08, 0.05]
+
+
+def test_a_demands_own_bound_is_its_slowest_frame_plus_its_compute() -> None:
+    timing = {
+        'frames': {'cam1': 0.090, 'cam2': 0.125, 'cam3': None},
+        'compute': {'cam1': 0.003, 'cam2': 0.004},
+        'fusion_compute': 0.001,
+    }
+    assert round(frames_bound({'timing': timing}) or 0.0, 9) == 0.130
+    assert frames_bound({'timing': {**timing, 'compute': {}}}) is None
+    assert frames_bound({'timing': {**timing, 'frames': {}}}) is None
+    assert frames_bound({}) is None

@@ -2,7 +2,8 @@
 
 Subscribes: <camera_id>/image_raw, <camera_id>/camera_info (the static overhead camera).
 Publishes: overhead/fix (geometry_msgs/PointStamped in ``world``, stamped with the image's
-    exposure time; one per image in which the marker was found), /diagnostics.
+    exposure time; one per image in which the marker was found), /diagnostics,
+    activesurv/ready (with ``wait_for_readers``: its name once its fixes have those readers).
 Parameters: see ``config/overhead_locator.yaml``. The camera's pose comes from
 ``extrinsics_file`` (``activesurv_calibrate extrinsics``) or ``camera_pose``.
 
@@ -21,7 +22,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, matrix_from_quaternion
-from activesurv_common.ros import diagnostics, local_topics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, ready, topics
 from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -48,6 +49,13 @@ PARAMS = (
     Param('marker_radius', 0.0125, 'top marker radius (m)', above=0.0),
     Param('frame_id', 'world', 'frame of the fixes'),
     Param('all_markers', False, 'several objects: every marker of a frame on overhead/fixes'),
+    Param(
+        'wait_for_readers',
+        0,
+        'readers its fixes must have matched before it says so on activesurv/ready (0: none)',
+        minimum=0,
+        maximum=64,
+    ),
     Param(
         'camera_info_file',
         '',
@@ -96,6 +104,9 @@ class OverheadLocatorNode(Node):
             (CameraInfo, info, self._on_info),
         ):
             local_topics.subscription(self, msg_type, topic, callback, qos.SENSOR, only_local=True)
+        if (readers := int(v['wait_for_readers'])) > 0:  # a simulated run's time waits for it
+            fixes = topics.OVERHEAD_FIXES if self.all_markers else topics.OVERHEAD_FIX
+            ready.announce_when_matched(self, outputs={fixes: readers})
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _on_info(self, msg: CameraInfo) -> None:

@@ -5,7 +5,8 @@ Publishes: demand_horizon (activesurv_interfaces/DemandHorizon, latched), overhe
     (geometry_msgs/PointStamped, each accepted fix), object_tracks
     (activesurv_interfaces/ObjectTracks: every track's filtered estimate at each fix),
     object_track_markers (visualization_msgs/MarkerArray, latched: the tracks for viewers),
-    /diagnostics.
+    /diagnostics, activesurv/ready (std_msgs/String, latched: its name once overhead/fix has a
+    publisher matched; a simulated run starts its time after it).
 Parameters: see ``config/predictor.yaml``.
 """
 
@@ -21,7 +22,7 @@ from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.pacing import ViewThrottle
-from activesurv_common.ros import diagnostics, local_topics, qos, topics
+from activesurv_common.ros import diagnostics, local_topics, qos, ready, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -122,6 +123,7 @@ class PredictorNode(Node):
             self.create_subscription(PoseArray, topics.OVERHEAD_FIXES, self._on_fixes, qos.STATE)
         else:
             self.create_subscription(PointStamped, topics.OVERHEAD_FIX, self._on_fix, qos.STATE)
+        ready.announce_when_matched(self, (topics.OVERHEAD_FIX, topics.OVERHEAD_FIXES))
         self.create_timer(0.1, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
 

@@ -124,7 +124,8 @@ def graph_specs(
                 'seed': exp.seed * 100 + 99,
             },
         ),
-        locator_spec(exp, sim, over, exp.setup.marker_radius),
+        # Simulated time starts once its fixes reach the predictor and the recorder.
+        locator_spec(exp, {**sim, 'wait_for_readers': 2}, over, exp.setup.marker_radius),
         *core_specs(exp, sim, believed, over, exp.demand_times, bag.parent / 'logs'),
     ]
     for i, sensor in enumerate(exp.setup.sensors):
@@ -358,9 +359,11 @@ class RunMonitor(Observer):
         self.recorded: dict[str, int] = {}
         self.heard: dict[str, set[tuple[int, str]]] = {}
         self._estimate_topic = ''
+        self.ready: set[str] = set()  # nodes whose inputs are matched (activesurv/ready)
 
     def on_start(self) -> None:
         node = self.node
+        node.create_subscription(String, topics.READY, self._on_ready, qos.LATCHED)
         node.create_subscription(Clock, topics.CLOCK, self._on_clock, qos.CLOCK_SUBSCRIBER)
         node.create_subscription(String, topics.RECORDER_STATUS, self._on_recorder, 10)
         # Per-demand events heard here, by resolved topic name: the run stops only once the
@@ -384,6 +387,9 @@ class RunMonitor(Observer):
             self.heard[topic].add((int(msg.demand_index), str(getattr(msg, 'camera_id', ''))))
 
         return on_event
+
+    def _on_ready(self, msg: String) -> None:
+        self.ready.add(msg.data.rsplit('/', 1)[-1])
 
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + 1e-9 * msg.clock.nanosec
@@ -577,6 +583,8 @@ def _run(
             if before_start is not None:
                 before_start(monitor, progress)
             n_nodes = sum(len(s.members) or 1 for s in specs)
+            if opts.time_origin is None:
+                _wait_until_matched(graph, monitor, first, progress)
             if early:
                 progress(f'{n_nodes} nodes up in {len(specs)} processes; simulated time starts')
                 graph.raise_if_stopping()
@@ -592,6 +600,38 @@ def _run(
                 graph.start([table])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
     return bag
+
+
+READY_MODULES = ('activesurv_prediction.predictor_node',)
+"""Nodes that say when their inputs are matched (:mod:`activesurv_common.ros.ready`); and
+every node given ``wait_for_readers``."""
+READY_TIMEOUT = 15.0
+"""s (wall) simulated time waits for them before it starts anyway, with a warning."""
+
+
+def _wait_until_matched(
+    graph: GraphSession, monitor: RunMonitor, specs: Sequence[NodeSpec], progress: Progress
+) -> None:
+    """Hold simulated time until every node of :data:`READY_MODULES` has its inputs matched:
+    a fix published before the predictor's reader is matched is lost, and with it the track
+    of the first demand (one Set A fast run in ten lost demand 0 so, its reader matched 1.5 s
+    into simulated time)."""
+    expected = {
+        m.name
+        for s in specs
+        for m in (s.members or (s,))
+        if m.module in READY_MODULES or int(m.parameters.get('wait_for_readers', 0)) > 0
+    }
+    started = time.monotonic()
+    while not expected <= monitor.ready:
+        graph.raise_if_stopping()
+        if time.monotonic() > started + READY_TIMEOUT:
+            late = ', '.join(sorted(expected - monitor.ready))
+            progress(f'warning: {late}: inputs not matched after {READY_TIMEOUT:g} s; starting')
+            return
+        monitor.spin(0.02)
+    if (waited := time.monotonic() - started) >= 0.1:
+        progress(f'{", ".join(sorted(expected))}: inputs matched {waited:.1f} s after the nodes')
 
 
 def _watch(

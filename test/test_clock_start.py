@@ -52,3 +52,49 @@ def test_a_cameras_driver_runs_with_its_imager_not_in_the_background() -> None:
     assert sorted(grouped) == ['cam1', 'core']
     assert [m.name for m in grouped['cam1'].members] == ['cam1_camera', 'cam1_imager']
     assert grouped['cam1'].nice == 0
+
+
+class _Graph:
+    def raise_if_stopping(self) -> None:
+        pass
+
+
+class _Monitor:
+    """Hears the nodes of ``then`` after ``after`` spins."""
+
+    def __init__(self, then: set[str], after: int) -> None:
+        self.ready: set[str] = set()
+        self.spins = 0
+        self._then, self._after = then, after
+
+    def spin(self, seconds: float) -> None:
+        self.spins += 1
+        if self.spins >= self._after:
+            self.ready |= self._then
+
+
+def test_time_waits_for_the_fixes_matched_at_both_ends(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The locator (its writer has its two readers) and the predictor (its reader has its
+    publisher) must both say so before simulated time starts; a run once lost demand 0 to
+    fixes published before the match."""
+    from activesurv_bringup.experiments import graph
+
+    exp = load_experiment('A', 'fast', 1)
+    grouped = group_processes(graph_specs(exp, tmp_path / 'bag', 1.0)[:-1])
+    locator = [m for s in grouped for m in s.members if m.name == 'overhead_locator']
+    assert locator[0].parameters['wait_for_readers'] == 2
+    said: list[str] = []
+    both = {'overhead_locator', 'predictor'}
+    monitor = _Monitor({'predictor'}, 3)
+    monkeypatch.setattr(graph, 'READY_TIMEOUT', 0.3)
+    graph._wait_until_matched(_Graph(), monitor, grouped, said.append)  # type: ignore[arg-type]
+    assert said, 'no warning'
+    assert said[0].startswith('warning: overhead_locator: inputs not matched'), said
+    said.clear()
+    monitor = _Monitor(both, 3)
+    graph._wait_until_matched(_Graph(), monitor, grouped, said.append)  # type: ignore[arg-type]
+    assert monitor.spins == 3
+    assert monitor.ready == both
+    assert not any(s.startswith('warning') for s in said), said

@@ -612,10 +612,12 @@ READY_TIMEOUT = 15.0
 def _wait_until_matched(
     graph: GraphSession, monitor: RunMonitor, specs: Sequence[NodeSpec], progress: Progress
 ) -> None:
-    """Hold simulated time until every node of :data:`READY_MODULES` has its inputs matched:
-    a fix published before the predictor's reader is matched is lost, and with it the track
-    of the first demand (one Set A fast run in ten lost demand 0 so, its reader matched 1.5 s
-    into simulated time)."""
+    """Hold simulated time until every node of :data:`READY_MODULES` and every node given
+    ``wait_for_readers`` says its topics are matched (``activesurv/ready``): a fix published
+    before the locator's writer and the predictor's reader have matched is lost, and with it
+    the track of the first demand (one Set A fast run in ten lost demand 0 so: its fixes
+    reached the predictor only 1.5 s into simulated time). A run on a rig's wall clock does
+    not wait."""
     expected = {
         m.name
         for s in specs

@@ -12,7 +12,7 @@ CLOCK = '/clock'
 # data[1] (std_msgs/Float64MultiArray, latched), so nodes on its host read the time exactly.
 CLOCK_ORIGIN = '/sim/clock_origin'
 TIME_RELEASE = '/sim/time_release'  # latched std_msgs/Empty: a held simulated time may start
-# latched std_msgs/String per node: the node's name once its inputs have their publishers
+# latched std_msgs/String per node: its name once its topics are matched (ros.ready)
 READY = 'activesurv/ready'
 # Simulation only: the truth at a demand instant as already determined before it (the table's
 # programmed path; a stage's motion when no new goal comes), so a simulated camera can render

@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, time_to_sec
+from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
@@ -70,18 +71,12 @@ class DispatcherNode(Node):
         declare(self, PARAMS)
         v = {p.name: self.get_parameter(p.name).value for p in PARAMS}
         self.setup = load_setup(str(v['setup_file']) or None, str(v['motion_class']))
-        config = DispatcherConfig(
-            int(v['k']),
-            float(v['rho']),
-            float(v['capture_lead']),
-            float(v['settle_time']),
-            float(v['camera_timeout']),
-            float(v['capture_grace']),
-            float(v['capture_hold']),
-            float(v['replan_quiet']),
-        )
+        config = DispatcherConfig.from_parameters(v)
         model = SensorModel.load(str(v['sensor_model_file']) or None)
-        self.session = Dispatcher(self.setup, model, config)
+        self.session, self._fine = (
+            Dispatcher(self.setup, model, config),
+            FineClock(self.get_clock(), self),
+        )
         self.frame_id = str(v['frame_id'])
         self._camera_changes, self._markers = (0, 0), ViewThrottle(float(v['marker_period']))
         self._goal_pubs = {
@@ -117,8 +112,8 @@ class DispatcherNode(Node):
             f'{len(self.setup.sensors)} cameras, {self.setup.motion.name} system, k={config.k}'
         )
 
-    def _now(self) -> float:
-        return float(self.get_clock().now().nanoseconds) * 1e-9
+    def _now(self) -> float:  # between /clock ticks too (every other frame has none)
+        return self._fine.now()
 
     def _joint_callback(self, camera_id: str) -> Callable[[JointState], None]:
         names = self.setup.sensor(camera_id).joint_names
@@ -141,9 +136,13 @@ class DispatcherNode(Node):
     def _on_horizon(self, msg: DemandHorizon) -> None:
         demands = horizon_to_demands(msg)
         dropped = len(msg.demands) - len(demands)
-        now = self._now()
+        # Decided at its frame, as lockstep does (the goals then start there), and then the
+        # rest of a step; on a clock past it (a rig's, or a late horizon), at that clock.
         stamp = time_to_sec(msg.header.stamp)
-        self._publish(self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count, stamp))
+        now = max(stamp, self.get_clock().now().nanoseconds * 1e-9)
+        out = self.session.set_horizon(demands, now, dropped, msg.manoeuvre_count, stamp)
+        out.merge(self.session.tick(now))
+        self._publish(out, now)
 
     def _on_diagnostics(self, msg: diagnostics.DiagnosticArray) -> None:
         for cid, fault in stage_faults(msg, self.get_namespace()).items():
@@ -152,8 +151,8 @@ class DispatcherNode(Node):
     def _on_tick(self) -> None:
         self._publish(self.session.tick(self._now()))
 
-    def _publish(self, out: Outputs) -> None:
-        now = self._now()
+    def _publish(self, out: Outputs, at: float | None = None) -> None:
+        now = self._now() if at is None else at
         for cmd in out.goals:
             self._goal_pubs[cmd.camera_id].publish(command_to_goal(cmd, now))
         for capture in [*out.captures, *out.missed]:

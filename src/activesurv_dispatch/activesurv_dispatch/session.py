@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -59,6 +59,11 @@ class DispatcherConfig:
     capture_grace: float = 0.1
     capture_hold: float = 0.0
     replan_quiet: float = 0.0
+
+    @classmethod
+    def from_parameters(cls, values: Mapping[str, object]) -> DispatcherConfig:
+        """From the ``dispatcher`` node's parameters (the same names)."""
+        return cls(**{f.name: type(getattr(cls, f.name))(values[f.name]) for f in fields(cls)})
 
 
 BLUR_SAID = 0.1  # a view's visibility its predicted blur costs, from which the log says so

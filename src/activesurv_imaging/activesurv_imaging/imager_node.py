@@ -33,10 +33,12 @@ from activesurv_common.ros.conversions import (
     joint_vector,
     model_from_camera_info,
     mount_from_parameters,
+    sec_to_time,
     time_to_sec,
     vector3,
 )
 from activesurv_common.ros.fine_clock import FineClock
+from activesurv_common.ros.instants import periodic
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_common.statuses import ObservationStatus
@@ -102,7 +104,7 @@ class ImagerNode(Node):
             states, cb = topics.joint_states(self.camera_id), self._on_joints  # in process
             local_topics.subscription(self, JointState, states, cb, state_qos, only_local=True)
         self.create_timer(0.05, self._on_tick)
-        self.create_timer(0.1, self._beat)
+        periodic(self, 0.1, self._beat)  # 10 Hz on the clock owner's grid, whatever /clock does
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _now(self) -> float:  # between /clock ticks too: a frame's arrival, for the budget
@@ -150,9 +152,8 @@ class ImagerNode(Node):
         elif self.core.pending:
             self._on_tick()
 
-    def _beat(self) -> None:
-        now = self.get_clock().now().to_msg()
-        self._beat_pub.publish(Header(stamp=now, frame_id=self.camera_id))
+    def _beat(self, t: float) -> None:
+        self._beat_pub.publish(Header(stamp=sec_to_time(t), frame_id=self.camera_id))
 
     def _on_tick(self) -> None:
         for obs in self.core.poll(self._now()):

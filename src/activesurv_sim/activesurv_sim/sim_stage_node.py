@@ -27,6 +27,8 @@ from sensor_msgs.msg import JointState
 
 from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import sec_to_time, time_to_sec
+from activesurv_common.ros.fine_clock import FineClock
+from activesurv_common.ros.instants import periodic
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest, StageGoal
@@ -60,6 +62,7 @@ class SimStageNode(Node):
         if not (len(self.joints) == len(kinds) == len(lo) == len(hi) == len(init)):
             raise ConfigError('joints, kinds, min, max and initial need the same length')
         self.motion = motion_class(str(g('motion_class').value))
+        self._fine = FineClock(self.get_clock(), self)
         now = self._now()
         self.axes: dict[str, AxisSimulator] = {}
         for j, k, a, b, p in zip(self.joints, kinds, lo, hi, init, strict=True):
@@ -75,7 +78,7 @@ class SimStageNode(Node):
         self._pub = local_topics.publisher(self, JointState, states, qos.STATE)
         self._diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_subscription(StageGoal, topics.goal(self.camera_id), self._on_goal, qos.GOAL)
-        self._triggers: dict[float, Timer | None] = {}
+        self._triggers: dict[float, Timer | bool | None] = {}  # None: fired
         self._ahead: dict[float, list[float]] = {}  # instant: positions published for it
         self._planned_pub = self.create_publisher(
             JointState, topics.planned_joint_states(self.camera_id), qos.EVENTS
@@ -83,11 +86,13 @@ class SimStageNode(Node):
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
-        self.create_timer(1.0 / float(g('publish_rate').value), self._publish)
+        # States at its rate on the clock owner's grid, however often /clock ticks.
+        self._period = 1.0 / float(g('publish_rate').value)
+        self._instants = periodic(self, self._period, self._publish)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self._fine.now()  # goals start when they come, not at the last /clock tick
 
     def _refuse(self, text: str) -> None:
         self.counts['refused'] += 1
@@ -95,7 +100,10 @@ class SimStageNode(Node):
         self.get_logger().warning(text, throttle_duration_sec=2)
 
     def _on_goal(self, msg: StageGoal) -> None:
-        now = self._now()
+        # From the frame it was planned on (its stamp, less than a state period ago), as in
+        # lockstep; a real bridge starts it on arrival, 10-20 ms later here.
+        now, stamp = self._now(), time_to_sec(msg.header.stamp)
+        now = stamp if now - self._period <= stamp <= now else now
         for joint, position, velocity in goal_items(msg):
             if joint not in self.axes:
                 self._refuse(f'goal for unknown joint {joint!r} ignored (have {self.joints})')
@@ -116,7 +124,9 @@ class SimStageNode(Node):
         now = self._now()
         if self.camera_id not in msg.camera_ids or t in self._triggers or not t > now:
             return
-        self._triggers[t] = self.create_timer(t - now, lambda: self._trigger(t))
+        # At the instant on the clock owner's mapping (not /clock's next tick), else a tick.
+        on_map = self._instants.at(t, lambda: self._trigger(t))
+        self._triggers[t] = on_map or self.create_timer(t - now, lambda: self._trigger(t))
         self._publish_planned(t)
         self._publish(t)  # where the commanded profile has the axes at the instant
 
@@ -132,7 +142,7 @@ class SimStageNode(Node):
 
     def _trigger(self, t: float) -> None:
         timer = self._triggers.get(t)
-        if timer is not None:
+        if isinstance(timer, Timer):
             timer.cancel()
             self.destroy_timer(timer)
         # The state at the instant itself, even if this timer fired a tick late (a latched

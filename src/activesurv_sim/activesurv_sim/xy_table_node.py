@@ -72,7 +72,7 @@ class XYTableNode(Node):
         self._clock_pub = (
             self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if self.publish_clock else None
         )
-        origin = topics.CLOCK_ORIGIN  # simulated = (steady - data[0]) * data[1], exactly
+        origin = topics.CLOCK_ORIGIN  # simulated = (steady - data[0]) * data[1]; data[2]: phase
         self._origin_pub = (
             self.create_publisher(Float64MultiArray, origin, qos.LATCHED)
             if self.publish_clock
@@ -91,7 +91,7 @@ class XYTableNode(Node):
         self._instant_ticks = bool(g('instant_ticks').value)
         self._clock_period = float(g('clock_period').value)
         self._period = 1.0 / float(g('publish_rate').value)
-        phase = float(g('publish_phase').value)
+        phase = self._phase = float(g('publish_phase').value)
         self._grid = PhaseLock(1.0 / self._period, phase) if phase else None
         step = self._period / (2.0 if self._grid else 1.0)  # on a grid: a tick near each point
         # With its own clock the node steps on the wall clock; otherwise on its node clock.
@@ -130,7 +130,8 @@ class XYTableNode(Node):
                 self.get_logger().warning(f'starting with {short} subscribers ({waited:.0f} s)')
             self._wall0 = time.monotonic()
             if self._origin_pub is not None:
-                self._origin_pub.publish(Float64MultiArray(data=[self._wall0, self.rtf]))
+                origin = [self._wall0, self.rtf, self._phase]
+                self._origin_pub.publish(Float64MultiArray(data=origin))
             self.get_logger().info('simulated time starts')
             return True
         return False

@@ -239,7 +239,8 @@ def test_a_stage_keeps_its_rate_on_the_tables_grid_between_thinned_ticks(
     on_grid = [t for t in states if t > 0.3 + running[0]]  # once the mapping is known
     assert len(on_grid) >= 20, states
     gaps = [b - a for a, b in itertools.pairwise(on_grid)]
-    assert max(gaps) < 1.5 / rate and min(gaps) > 0.5 / rate, gaps  # its rate, not the ticks'
+    assert max(gaps) < 1.5 / rate, gaps  # its rate, not the ticks'
+    assert min(gaps) > 0.5 / rate, gaps
     assert all(abs((t - phase) * rate - round((t - phase) * rate)) < 1e-6 for t in on_grid)
     tick_gaps = [b - a for a, b in itertools.pairwise(running)]
     assert min(tick_gaps) >= 2.0 / rate - 1e-5, tick_gaps  # the ticks were thinned

@@ -8,8 +8,9 @@ Subscribes: <camera_id>/stage/goal (activesurv_interfaces/StageGoal); capture_re
     latches its encoders on the camera's trigger line would) only if that differs; and on
     ``sim/<camera_id>/planned_joint_states`` the same for the simulated camera's rendering
     ahead.
-Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate`` and at
-    the demand instants, /diagnostics.
+Publishes: <camera_id>/stage/joint_states (sensor_msgs/JointState) at ``publish_rate`` (on
+    the simulated clock owner's grid, whatever /clock's rate: ``instants.periodic``) and at the
+    demand instants, /diagnostics.
 The axes follow the kinematics core on the node's clock (simulated time in experiments) with
 the velocity and acceleration caps of the motion class (static, medium, fast). Goals outside the
 soft limits, or any goal for a static camera, are refused with a logged reason.

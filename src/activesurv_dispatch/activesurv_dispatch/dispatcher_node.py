@@ -112,7 +112,7 @@ class DispatcherNode(Node):
             f'{len(self.setup.sensors)} cameras, {self.setup.motion.name} system, k={config.k}'
         )
 
-    def _now(self) -> float:  # between /clock ticks too (every other frame has none)
+    def _now(self) -> float:  # when a message came, between /clock ticks too
         return self._fine.now()
 
     def _joint_callback(self, camera_id: str) -> Callable[[JointState], None]:
@@ -148,8 +148,9 @@ class DispatcherNode(Node):
         for cid, fault in stage_faults(msg, self.get_namespace()).items():
             self._publish(self.session.on_stage_fault(cid, fault, self._now()))
 
-    def _on_tick(self) -> None:
-        self._publish(self.session.tick(self._now()))
+    def _on_tick(self) -> None:  # at the tick's own time, as a horizon at its frame's
+        now = self.get_clock().now().nanoseconds * 1e-9
+        self._publish(self.session.tick(now), now)
 
     def _publish(self, out: Outputs, at: float | None = None) -> None:
         now = self._now() if at is None else at

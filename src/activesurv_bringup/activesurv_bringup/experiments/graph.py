@@ -150,10 +150,8 @@ def graph_specs(
         # fast: median latency 16.0 against 18.4 ms; docs/performance.md). Stamps between
         # ticks are read off the extrapolated clock (FineClock, the recorder's ClockEstimate).
         'instant_ticks': False,
-        # A /clock tick on every other state: a tick wakes every process (0.04 cores at 10 Hz
-        # here). What must keep its rate runs on the clock owner's mapping instead (the stages'
-        # states, the imagers' heartbeats: ``instants.periodic``; the triggers at instants), and
-        # what decides reads the time between ticks (FineClock: the dispatcher, the stages).
+        # A /clock tick on every other state (each wakes every process); what keeps its rate
+        # runs on the table's grid (``instants.periodic``; docs/node-graph.md).
         'clock_period': 2.0 / exp.overhead_rate,
         'real_time_factor': float(rtf),
         **truth,

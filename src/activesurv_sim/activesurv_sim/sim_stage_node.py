@@ -93,7 +93,7 @@ class SimStageNode(Node):
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _now(self) -> float:
-        return self._fine.now()  # goals start when they come, not at the last /clock tick
+        return self._fine.now()  # between /clock ticks too (every other state has none)
 
     def _refuse(self, text: str) -> None:
         self.counts['refused'] += 1

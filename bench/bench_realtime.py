@@ -12,7 +12,11 @@
   (median over runs); ``cpu_by_process`` itemises the first run. ``cpu_cores_running``: the
   same from 1 s of simulated time to the last demand (``cpu.json``'s ``running``): the rate a
   running graph keeps, without the start's discovery burst and the idle drain, whose share of
-  a 10 s run changes ``cpu_cores`` by 0.05 from run to run.
+  a 10 s run changes ``cpu_cores`` by 0.05 from run to run. ``cpu_by_callback``: the first
+  run's costliest callbacks (``ACTIVESURV_CALLBACK_CPU``: process, callback, calls, CPU
+  seconds, ms a call; a callback's CPU includes what its container's members do with what it
+  hands them in process), and ``cpu_in_callbacks`` the share of the nodes' CPU spent in
+  callbacks at all (the rest: the executor and DDS).
 * ``compute_ms``: the compute on each demand's critical path, median over the same demands:
   the slowest of its cameras' imaging of its frame (each observation carries its imager's
   ``compute_time``; the cameras image in parallel) plus fusion's processing (the estimate's
@@ -64,7 +68,12 @@ ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 
 
 def _run(
-    rtf: float, tmp: Path, name: str, processes: str = 'containers', k: int | None = None
+    rtf: float,
+    tmp: Path,
+    name: str,
+    processes: str = 'containers',
+    k: int | None = None,
+    timed: bool = False,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     from activesurv_bringup.experiments.experiment import config_path, load_experiment
     from activesurv_bringup.experiments.graph import run_graph
@@ -78,7 +87,19 @@ def _run(
         config = tmp / f'experiments_k{k}.yaml'
         config.write_text(yaml.safe_dump(doc))
     exp = load_experiment('A', 'fast', 7, config_file=config)
-    run_graph(exp, tmp / name, RunOptions(rtf=rtf, processes=processes), progress=lambda _: None)
+    from activesurv_common.ros import callback_cpu
+
+    before = os.environ.get(callback_cpu.ENV)
+    if timed:  # each process's callbacks' CPU into cpu.json (two clock reads a callback)
+        os.environ[callback_cpu.ENV] = '1'
+    try:
+        opts = RunOptions(rtf=rtf, processes=processes)
+        run_graph(exp, tmp / name, opts, progress=lambda _: None)
+    finally:
+        if before is None:
+            os.environ.pop(callback_cpu.ENV, None)
+        else:
+            os.environ[callback_cpu.ENV] = before
     return load_run(tmp / name), json.loads((tmp / name / 'cpu.json').read_text())
 
 
@@ -172,12 +193,14 @@ def _series(
     tmp: Path, processes: str, runs: int, k: int | None = None, two_objects: bool = False
 ) -> dict[str, Any]:
     oks, lat, heard, cores, first_cpu, compute = [], [], [], [], None, []
+    by_callback, in_callbacks = None, None
     running: list[float] = []
     shared: list[float] = []
     n = 0
     for r in range(runs):
         name = f'{processes}{r}' + (f'_k{k}' if k else '') + ('_C' if two_objects else '')
-        doc, cpu = _set_c(tmp, name) if two_objects else _run(1.0, tmp, name, processes, k)
+        timed = r == 0 and not two_objects  # the first run itemises its callbacks too
+        doc, cpu = _set_c(tmp, name) if two_objects else _run(1.0, tmp, name, processes, k, timed)
         n = len(doc['demands'])
         oks.append(_ok(doc))
         lat += [d['latency'] for d in doc['demands'] if d['latency'] is not None]
@@ -197,7 +220,10 @@ def _series(
         cores.append(cpu['cores'])
         if 'running' in cpu:
             running.append(cpu['running']['cores'])
-        first_cpu = first_cpu or cpu['cpu_seconds']
+        if first_cpu is None:
+            first_cpu = cpu['cpu_seconds']
+            by_callback = cpu.get('top_callbacks')
+            in_callbacks = _in_callbacks(cpu)
     return {
         'ok': f'{min(o for o, _ in oks)}/{n}',
         'ok_with_k': f'{min(k for _, k in oks)}/{n}',
@@ -220,8 +246,21 @@ def _series(
         'cpu_cores': round(statistics.median(cores), 3),
         'cpu_cores_running': round(statistics.median(running), 3) if running else None,
         'cpu_by_process': first_cpu,
+        'cpu_by_callback': by_callback,
+        'cpu_in_callbacks': in_callbacks,
         'all_ok': all(o == n for o, _ in oks),
     }
+
+
+def _in_callbacks(cpu: dict[str, Any]) -> float | None:
+    """The share of the run's node CPU (``cpu_seconds``, the orchestrator left out) spent in
+    the nodes' callbacks (``ACTIVESURV_CALLBACK_CPU``); the rest is the executor's and DDS's."""
+    calls = cpu.get('callbacks')
+    nodes = sum(v for k, v in cpu['cpu_seconds'].items() if k != 'orchestrator')
+    if not calls or nodes <= 0.0:
+        return None
+    spent = sum(s for doc in calls.values() for _, s in doc['callbacks'].values())
+    return round(spent / nodes, 3)
 
 
 def run() -> dict[str, object]:

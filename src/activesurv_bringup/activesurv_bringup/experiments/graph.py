@@ -31,7 +31,7 @@ from activesurv_bringup.experiments.options import RunOptions, scoped_environ
 from activesurv_bringup.observer import Observer
 from activesurv_bringup.specs import imager_spec, mount_parameters, stage_spec
 from activesurv_common.calibration import pose_to_list
-from activesurv_common.ros import qos, topics
+from activesurv_common.ros import callback_cpu, qos, topics
 from activesurv_dispatch.sensors import Sensor, setup_to_dict
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
 from activesurv_launch.launcher import Launcher, NodeSpec, container
@@ -555,6 +555,9 @@ def _run(
     startup_timeout = opts.startup_timeout
     (out_dir / 'logs').mkdir(exist_ok=True)
     env = dict(os.environ)
+    timed = callback_cpu.enabled() and not opts.compose  # each process's callbacks' CPU
+    if timed:
+        env[callback_cpu.ENV] = str(out_dir / 'logs' / 'callbacks')
     table = _held_for_clock(specs, opts)
     # The simulated table starts with the graph and holds time at 0 until released below:
     # its own start (imports, error maps: 0.6 s of a core) overlaps the others'.
@@ -602,7 +605,21 @@ def _run(
                 graph.raise_if_stopping()
                 graph.start([table])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
+    if timed:  # written by the processes as they stopped
+        _add_callbacks(out_dir / 'cpu.json', out_dir / 'logs' / 'callbacks')
     return bag
+
+
+def _add_callbacks(cpu_file: Path, directory: Path) -> None:
+    """``cpu.json`` with each process's callbacks' CPU (``ACTIVESURV_CALLBACK_CPU``): every
+    process's tally under ``callbacks``, the costliest under ``top_callbacks``."""
+    collected = callback_cpu.collect(directory)
+    if not collected or not cpu_file.is_file():
+        return
+    doc = json.loads(cpu_file.read_text())
+    doc['top_callbacks'] = callback_cpu.top(collected)
+    doc['callbacks'] = collected
+    cpu_file.write_text(json.dumps(doc, indent=2) + '\n')
 
 
 READY_MODULES = ('activesurv_prediction.predictor_node',)

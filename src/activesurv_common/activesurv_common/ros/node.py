@@ -33,7 +33,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from activesurv_common.errors import CommonError
 from activesurv_common.lifetime import PARENT_ENV, STOP_SIGNALS, orphaned
-from activesurv_common.ros import fast_logging
+from activesurv_common.ros import callback_cpu, fast_logging
 
 N = TypeVar('N', bound=Node)
 
@@ -166,6 +166,7 @@ def run_node(
     stop = StopRequest()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     fast_logging.install()
+    callback_cpu.install()  # ACTIVESURV_CALLBACK_CPU: a diagnostic, off by default
     try:
         node = factory()
     except (*STARTUP_ERRORS, *errors) as exc:
@@ -186,6 +187,7 @@ def run_node(
         if on_stop is not None:
             on_stop(node)
         executor.shutdown()
+        callback_cpu.write(node.get_fully_qualified_name())
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

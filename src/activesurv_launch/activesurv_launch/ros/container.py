@@ -37,7 +37,7 @@ import yaml
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
-from activesurv_common.ros import fast_logging, local_topics
+from activesurv_common.ros import callback_cpu, fast_logging, local_topics
 from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
 from activesurv_common.yamlio import load_yaml
 from activesurv_launch.launcher import NodeSpec
@@ -82,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = StopRequest()  # a stop asked while the members start ends the container once started
     rclpy.init(args=args[1:], signal_handler_options=SignalHandlerOptions.NO)
     fast_logging.install()
+    callback_cpu.install()  # ACTIVESURV_CALLBACK_CPU: a diagnostic, off by default
     local_topics.enable()  # one thread spins all members: in-process delivery is safe
     nodes: list[Any] = []
     for m in members:
@@ -122,6 +123,7 @@ def main(argv: list[str] | None = None) -> int:
             if callable(close):
                 close()  # the recorder closes its bag
         executor.shutdown()
+        callback_cpu.write('/' + Path(args[0]).name.removesuffix('.members.yaml'))
         for n in reversed(nodes):
             n.destroy_node()
         rclpy.try_shutdown()

@@ -62,12 +62,16 @@ def _probe(env: dict[str, str]) -> list[str]:
 def test_a_process_writes_its_callbacks_cpu_when_asked(tmp_path: Path) -> None:
     env = {**os.environ, callback_cpu.ENV: str(tmp_path / 'calls')}
     installed, path, heard, info = _probe(env)
-    assert installed == 'True' and path == str(tmp_path / 'calls' / 'probe.json')
-    assert int(heard) >= 5 and info == 'dict', 'the subscription lost its message info'
+    assert installed == 'True'
+    assert path == str(tmp_path / 'calls' / 'probe.json')
+    assert int(heard) >= 5
+    assert info == 'dict', 'the subscription lost its message info'
     doc = json.loads(Path(path).read_text())
-    assert doc['process'] == '/probe' and doc['cpu_seconds'] > 0.0
+    assert doc['process'] == '/probe'
+    assert doc['cpu_seconds'] > 0.0
     calls, spent = doc['callbacks']['timer probe burn']
-    assert calls >= 10 and spent >= 0.01 * calls * 0.9, (calls, spent)
+    assert calls >= 10
+    assert spent >= 0.01 * calls * 0.9, (calls, spent)
     heard_calls, _ = doc['callbacks']['sub probe probe_topic']
     assert heard_calls == int(heard)
     assert doc['publish']['/probe_topic'][0] == calls
@@ -75,14 +79,17 @@ def test_a_process_writes_its_callbacks_cpu_when_asked(tmp_path: Path) -> None:
     collected = callback_cpu.collect(tmp_path / 'calls')
     assert list(collected) == ['/probe']
     first = callback_cpu.top(collected, 1)[0]
-    assert first['callback'] == 'timer probe burn' and first['ms_per_call'] >= 9.0
+    assert first['callback'] == 'timer probe burn'
+    assert first['ms_per_call'] >= 9.0
 
 
 @pytest.mark.node
 def test_without_the_variable_nothing_is_timed(tmp_path: Path) -> None:
     env = {k: v for k, v in os.environ.items() if k != callback_cpu.ENV}
     installed, path, heard, _ = _probe(env)
-    assert installed == 'False' and path == 'None' and int(heard) >= 5
+    assert installed == 'False'
+    assert path == 'None'
+    assert int(heard) >= 5
 
 
 def test_collect_skips_what_it_cannot_read(tmp_path: Path) -> None:
@@ -95,3 +102,13 @@ def test_collect_skips_what_it_cannot_read(tmp_path: Path) -> None:
     assert callback_cpu.top(collected) == [
         {'process': '/a', 'callback': 't', 'calls': 2, 'cpu_s': 0.5, 'ms_per_call': 250.0}
     ]
+
+
+def test_a_plain_yes_writes_beside_the_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(callback_cpu.ENV, '1')
+    assert callback_cpu.enabled()
+    assert callback_cpu.output_dir() == Path('callbacks')
+    monkeypatch.setenv(callback_cpu.ENV, '/tmp/x')
+    assert callback_cpu.output_dir() == Path('/tmp/x')
+    monkeypatch.setenv(callback_cpu.ENV, '')
+    assert not callback_cpu.enabled()

@@ -1,9 +1,9 @@
 """Where a process's CPU goes, callback by callback: a diagnostic (``ACTIVESURV_CALLBACK_CPU``).
 
-With the environment variable ``ACTIVESURV_CALLBACK_CPU`` set to a directory, a node process
-(:func:`activesurv_common.ros.node.run_node`, a container) times every subscription and timer
-callback of its nodes on the thread's CPU clock, and every ``publish`` apart, and writes
-``<dir>/<process>.json`` when it stops::
+With the environment variable ``ACTIVESURV_CALLBACK_CPU`` set to a directory (or to ``1``:
+``./callbacks``), a node process (:func:`activesurv_common.ros.node.run_node`, a container)
+times every subscription and timer callback of its nodes on the thread's CPU clock, and every
+``publish`` apart, and writes ``<dir>/<process>.json`` when it stops::
 
     {"process": "/core", "cpu_seconds": 2.64,
      "callbacks": {"sub predictor overhead/fix": [108, 0.856], ...},
@@ -37,6 +37,16 @@ _INSTALLED = [False]
 def enabled() -> bool:
     """Whether this process times its callbacks (the variable names a directory)."""
     return bool(os.environ.get(ENV, ''))
+
+
+def output_dir() -> Path:
+    """Where the tallies go: the directory the variable names; for a plain yes (``1``,
+    ``true``, ``yes``, ``on``), ``callbacks`` in the working directory."""
+    value = os.environ.get(ENV, '')
+    return Path('callbacks') if value.lower() in YES else Path(value)
+
+
+YES = ('1', 'true', 'yes', 'on')
 
 
 def _timed(kind: str, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -111,11 +121,11 @@ def write(process: str) -> Path | None:
     doc = {'process': process, 'cpu_seconds': round(own.user + own.system, 3), **tally()}
     stem = re.sub(r'[^A-Za-z0-9_.-]+', '_', process.strip('/')) or 'process'
     try:
-        directory = Path(os.environ[ENV])
+        directory = output_dir()
         directory.mkdir(parents=True, exist_ok=True)
         path = directory / f'{stem}.json'
         path.write_text(json.dumps(doc, indent=1) + '\n')
-    except (OSError, KeyError):
+    except OSError:
         return None
     return path
 

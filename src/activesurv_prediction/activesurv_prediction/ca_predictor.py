@@ -29,7 +29,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
 from activesurv_prediction.base import (
@@ -98,6 +97,10 @@ class ConstantAccelerationPredictor:
         self.initial_velocity_std = float(initial_velocity_std)
         self.initial_acceleration_std = float(initial_acceleration_std)
         self.outliers = OutlierGate(gate, max_rejections)
+        # Deferred: filterpy's package imports scipy.stats (1 s of a process's start), and only
+        # this optional filter (--predictor ca) needs it; the IMM default never builds one.
+        from filterpy.kalman import KalmanFilter
+
         self.kf = KalmanFilter(dim_x=6, dim_z=2)
         self.kf.H = H.copy()
         self.kf.R = np.eye(2) * self.measurement_std**2

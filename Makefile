@@ -37,10 +37,8 @@ $(STAMPS)/venv:
 	$(PYTHON) -m venv $(VENV)
 	@mkdir -p $(STAMPS) && touch $@
 
-# --no-compile: a module is byte-compiled when first imported, not every module of every wheel
-# at install (20 s of a fresh set-up here).
 $(STAMPS)/deps: $(STAMPS)/venv requirements.txt constraints.txt
-	$(PIP) install -q --no-compile -r requirements.txt -c constraints.txt
+	$(PIP) install -q -r requirements.txt -c constraints.txt
 	@touch $@
 
 $(STAMPS)/interfaces: $(STAMPS)/deps $(IFACE_SRC)

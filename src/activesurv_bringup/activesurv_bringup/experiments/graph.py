@@ -15,7 +15,7 @@ import contextlib
 import json
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -570,7 +570,9 @@ def _run(
         opts.time_origin,
         opts.namespace,
     )
-    with monitor:  # rclpy is started here when no one in this process has
+    # rclpy is started with the monitor when no one in this process has; the callbacks' CPU is
+    # collected once every process has stopped, a signalled run's too.
+    with _callbacks_into(out_dir, timed), monitor:
         launcher: NodeRunner
         if opts.compose:
             launcher = Composition()  # every node's module in-process
@@ -605,21 +607,24 @@ def _run(
                 graph.raise_if_stopping()
                 graph.start([table])
             _watch(graph, launcher, monitor, until, opts, by_name, progress, out_dir)
-    if timed:  # written by the processes as they stopped
-        _add_callbacks(out_dir / 'cpu.json', out_dir / 'logs' / 'callbacks')
     return bag
 
 
-def _add_callbacks(cpu_file: Path, directory: Path) -> None:
-    """``cpu.json`` with each process's callbacks' CPU (``ACTIVESURV_CALLBACK_CPU``): every
-    process's tally under ``callbacks``, the costliest under ``top_callbacks``."""
-    collected = callback_cpu.collect(directory)
-    if not collected or not cpu_file.is_file():
-        return
-    doc = json.loads(cpu_file.read_text())
-    doc['top_callbacks'] = callback_cpu.top(collected)
-    doc['callbacks'] = collected
-    cpu_file.write_text(json.dumps(doc, indent=2) + '\n')
+@contextlib.contextmanager
+def _callbacks_into(out_dir: Path, timed: bool) -> Iterator[None]:
+    """On the way out, ``cpu.json`` gets each process's callbacks' CPU
+    (``ACTIVESURV_CALLBACK_CPU``, written by the processes as they stopped): every process's
+    tally under ``callbacks``, the costliest under ``top_callbacks``."""
+    try:
+        yield
+    finally:
+        cpu_file = out_dir / 'cpu.json'
+        collected = callback_cpu.collect(out_dir / 'logs' / 'callbacks') if timed else {}
+        if collected and cpu_file.is_file():
+            doc = json.loads(cpu_file.read_text())
+            doc['top_callbacks'] = callback_cpu.top(collected)
+            doc['callbacks'] = collected
+            cpu_file.write_text(json.dumps(doc, indent=2) + '\n')
 
 
 READY_MODULES = ('activesurv_prediction.predictor_node',)

@@ -77,7 +77,8 @@ def _run(
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     from activesurv_bringup.experiments.experiment import config_path, load_experiment
     from activesurv_bringup.experiments.graph import run_graph
-    from activesurv_bringup.experiments.options import RunOptions
+    from activesurv_bringup.experiments.options import RunOptions, scoped_environ
+    from activesurv_common.ros import callback_cpu
     from activesurv_evaluation.runs import load_run
 
     config = None
@@ -87,19 +88,10 @@ def _run(
         config = tmp / f'experiments_k{k}.yaml'
         config.write_text(yaml.safe_dump(doc))
     exp = load_experiment('A', 'fast', 7, config_file=config)
-    from activesurv_common.ros import callback_cpu
-
-    before = os.environ.get(callback_cpu.ENV)
-    if timed:  # each process's callbacks' CPU into cpu.json (two clock reads a callback)
-        os.environ[callback_cpu.ENV] = '1'
-    try:
+    # The first run of a series also times each process's callbacks (cpu.json's callbacks).
+    with scoped_environ({callback_cpu.ENV: '1'} if timed else {}):
         opts = RunOptions(rtf=rtf, processes=processes)
         run_graph(exp, tmp / name, opts, progress=lambda _: None)
-    finally:
-        if before is None:
-            os.environ.pop(callback_cpu.ENV, None)
-        else:
-            os.environ[callback_cpu.ENV] = before
     return load_run(tmp / name), json.loads((tmp / name / 'cpu.json').read_text())
 
 

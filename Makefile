@@ -21,6 +21,9 @@ PKG_META := $(foreach p,$(PKGS),src/$(p)/setup.py src/$(p)/setup.cfg src/$(p)/pa
             $(wildcard src/*/config/*.yaml)
 CORE_DIRS := $(foreach p,$(PKGS),src/$(p)/$(p))
 TEST_ARGS ?=
+# Two pytest-xdist workers: the graph tier in one (a run at a time, as a lab machine would run
+# them), everything else in the other (conftest.py's groups); TEST_JOBS=0 runs in one process.
+TEST_JOBS ?= 2
 
 .PHONY: help setup demo test bench lint lock clean
 
@@ -69,7 +72,7 @@ demo: setup
 	$(VENV)/bin/activesurv demo
 
 test: setup
-	$(PY) -m pytest $(TEST_ARGS)
+	$(PY) -m pytest -n $(TEST_JOBS) --dist loadgroup --no-loadscope-reorder $(TEST_ARGS)
 
 bench: setup
 	$(PY) bench/run.py --out bench/results.json

@@ -32,15 +32,21 @@ def _claim_domain_id() -> int:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    if os.environ.get('ACTIVESURV_TEST_ISOLATED') == '1':
-        return  # a nested pytest (or a child) keeps the parent's domain
+    # Each process that runs tests isolates itself once: a plain session, or each worker of a
+    # parallel one (``make test``: pytest-xdist), whose tests must not hear the other worker's
+    # nodes. A nested pytest (or a child) keeps its parent's: the marker holds who set it.
+    me = os.environ.get('PYTEST_XDIST_WORKER', 'main')
+    if os.environ.get('ACTIVESURV_TEST_ISOLATED') in (me, '1'):
+        return
     ros_home = Path(tempfile.mkdtemp(prefix='activesurv-test-ros-'))
     os.environ['ROS_DOMAIN_ID'] = str(_claim_domain_id())
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_HOME'] = str(ros_home)
     os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
     os.environ['ACTIVESURV_LOCK_DIR'] = str(ros_home / 'locks')  # the rigs' port locks
-    os.environ['ACTIVESURV_TEST_ISOLATED'] = '1'
+    os.environ['ACTIVESURV_TEST_ISOLATED'] = me
+    if me == 'main':  # the one colcon workspace of the session, its workers' too
+        os.environ['ACTIVESURV_COLCON_WS'] = str(ros_home / 'colcon')
     # Runs are told their rig's truth unless a test asks otherwise: commissioning a rig takes
     # minutes (test_commission.py runs it, and the default, on purpose).
     os.environ.setdefault('ACTIVESURV_CALIBRATION', 'truth')
@@ -54,8 +60,19 @@ ROOT = Path(__file__).resolve().parent
 TIERS = ('graph', 'node', 'cli', 'cross', 'meta')
 
 
+# Run last in the graph worker of a parallel session: the lab's cameras render at 15 Hz each and
+# want the machine to themselves, which they have once the other worker's tests are done.
+HEAVY_LAST = (
+    'test_several_hosts.py', 'test_image_load.py', 'test_surveil.py', 'test_measure_delay.py',
+    'test_hardware_lab.py', 'test_lab.py',
+)  # fmt: skip
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's worker reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Every test shows its tier: refused at collection otherwise."""
+    """Every test shows its tier: refused at collection otherwise. In a parallel session
+    (``--dist loadgroup``) the graph tier runs in one worker, one run at a time, heaviest last,
+    while the other worker runs the rest a module at a time (a module's fixtures built once)."""
     wrong = []
     for item in items:
         path = Path(str(item.path)).resolve()
@@ -67,29 +84,61 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             wrong.append(f'{item.nodeid}: a package test is its core or node tier, not {marks}')
     if wrong:
         raise pytest.UsageError('tests without their tier:\n  ' + '\n  '.join(wrong))
-    if not config.option.collectonly and any(Path(str(i.path)).name == COLCON_TEST for i in items):
+    if getattr(config.option, 'loadgroup', False):
+        _one_graph_worker(items)
+    elif not config.option.collectonly and any(i.path.name == COLCON_TEST for i in items):
+        _start_colcon_build()
+
+
+def _one_graph_worker(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> tuple[int, int]:
+        if item.get_closest_marker('graph') is None:
+            return (2, 0)
+        name = Path(str(item.path)).name
+        return (1, HEAVY_LAST.index(name)) if name in HEAVY_LAST else (0, 0)
+
+    for item in items:
+        graph = item.get_closest_marker('graph') is not None
+        item.add_marker(pytest.mark.xdist_group('graph' if graph else str(item.path)))
+    items.sort(key=rank)  # stable: the order within a file is kept
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_node_collection_finished(node: Any, ids: list[str]) -> None:
+    """A parallel session's controller starts the colcon build once, as a plain session does
+    at collection, where every worker finds it."""
+    if any(COLCON_TEST in i for i in ids):
         _start_colcon_build()
 
 
 # The colcon build of the workspace (test/test_colcon_build.py) is a minute of CMake and
 # rosidl generation that waits for nothing: it starts in the background when that test is
-# collected, beside the package tests that run first, and the test waits for it.
+# collected, beside the package tests that run first, and the test waits for it. It writes its
+# exit code to ``rc`` beside the workspace, which a worker of a parallel session waits for.
 COLCON_TEST = 'test_colcon_build.py'
 _colcon: dict[str, Any] = {}
 
 
+def _colcon_ws() -> Path:
+    if not os.environ.get('ACTIVESURV_COLCON_WS'):  # a session isolated by hand
+        os.environ['ACTIVESURV_COLCON_WS'] = tempfile.mkdtemp(prefix='activesurv-colcon-')
+    return Path(os.environ['ACTIVESURV_COLCON_WS'])
+
+
 def _start_colcon_build() -> None:
     colcon = Path(sys.executable).parent / 'colcon'
-    if _colcon or not colcon.exists():
-        return  # the test says what is missing
-    ws = Path(tempfile.mkdtemp(prefix='activesurv-colcon-'))
+    ws = _colcon_ws()
+    if _colcon or not colcon.exists() or (ws.exists() and any(ws.iterdir())):
+        return  # started already (here or by the controller), or the test says what is missing
+    ws.mkdir(parents=True, exist_ok=True)
     (ws / 'src').symlink_to(ROOT / 'src')
     env = dict(os.environ)
     env['AMENT_PREFIX_PATH'] = env['CMAKE_PREFIX_PATH'] = sys.prefix
     env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env.get("PATH", "")}'
     log = (ws / 'build.log').open('w')
+    build = [str(colcon), 'build', '--base-paths', 'src', '--event-handlers', 'console_direct-']
     proc = subprocess.Popen(
-        [str(colcon), 'build', '--base-paths', 'src', '--event-handlers', 'console_direct-'],
+        ['/bin/sh', '-c', '"$@"; echo $? > rc.part && mv rc.part rc', 'sh', *build],
         cwd=ws,
         env=env,
         stdout=log,
@@ -102,12 +151,16 @@ def _start_colcon_build() -> None:
 @pytest.fixture(scope='session')
 def colcon_workspace() -> Path:
     """The workspace colcon built in the background (its ``install/`` beside ``src``)."""
-    if not _colcon:
-        _start_colcon_build()
-    assert _colcon, 'colcon is not installed in the venv (make setup)'
-    proc: subprocess.Popen[bytes] = _colcon['proc']
-    rc = proc.wait(timeout=900)
-    ws: Path = _colcon['ws']
+    import time
+
+    _start_colcon_build()
+    ws = _colcon_ws()
+    assert (ws / 'src').exists(), 'colcon is not installed in the venv (make setup)'
+    deadline = time.monotonic() + 900.0
+    while not (ws / 'rc').exists():
+        assert time.monotonic() < deadline, 'colcon build still running after 900 s'
+        time.sleep(0.5)
+    rc = int((ws / 'rc').read_text())
     text = (ws / 'build.log').read_text(errors='replace')
     assert rc == 0, f'colcon build failed ({rc}):\n{text[-6000:]}'
     return ws

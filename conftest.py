@@ -7,6 +7,7 @@ in a temporary directory. This runs before any test module imports rclpy.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -45,7 +46,8 @@ def pytest_configure(config: pytest.Config) -> None:
     os.environ['ROS_LOG_DIR'] = str(ros_home / 'log')
     os.environ['ACTIVESURV_LOCK_DIR'] = str(ros_home / 'locks')  # the rigs' port locks
     os.environ['ACTIVESURV_TEST_ISOLATED'] = me
-    if me == 'main':  # the one colcon workspace of the session, its workers' too
+    if me == 'main':  # the session's own files (colcon workspace, groups), its workers' too
+        os.environ['ACTIVESURV_TEST_SESSION_DIR'] = str(ros_home)
         os.environ['ACTIVESURV_COLCON_WS'] = str(ros_home / 'colcon')
     # Runs are told their rig's truth unless a test asks otherwise: commissioning a rig takes
     # minutes (test_commission.py runs it, and the default, on purpose).
@@ -68,7 +70,6 @@ HEAVY_LAST = (
 )  # fmt: skip
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's worker reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Every test shows its tier: refused at collection otherwise. In a parallel session
     (``--dist loadgroup``) the graph tier runs in one worker, one run at a time, heaviest last,
@@ -84,23 +85,56 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             wrong.append(f'{item.nodeid}: a package test is its core or node tier, not {marks}')
     if wrong:
         raise pytest.UsageError('tests without their tier:\n  ' + '\n  '.join(wrong))
-    if getattr(config.option, 'loadgroup', False):
+    if os.environ.get('PYTEST_XDIST_WORKER') and getattr(config.option, 'loadgroup', False):
         _one_graph_worker(items)
     elif not config.option.collectonly and any(i.path.name == COLCON_TEST for i in items):
         _start_colcon_build()
 
 
 def _one_graph_worker(items: list[pytest.Item]) -> None:
+    """Order a worker's collection (graph tier first, the heaviest last, the rest after) and
+    write each test's group where the controller's scheduler reads it: xdist's own
+    ``xdist_group`` rewrites node ids, which pytest 9 no longer lets it do."""
+
     def rank(item: pytest.Item) -> tuple[int, int]:
         if item.get_closest_marker('graph') is None:
             return (2, 0)
-        name = Path(str(item.path)).name
+        name = item.path.name
         return (1, HEAVY_LAST.index(name)) if name in HEAVY_LAST else (0, 0)
 
-    for item in items:
-        graph = item.get_closest_marker('graph') is not None
-        item.add_marker(pytest.mark.xdist_group('graph' if graph else str(item.path)))
     items.sort(key=rank)  # stable: the order within a file is kept
+    groups = {
+        i.nodeid: 'graph' if i.get_closest_marker('graph') else i.nodeid.split('::')[0]
+        for i in items
+    }
+    path = _groups_file()
+    part = path.with_name(f'{path.name}.{os.getpid()}')
+    part.write_text(json.dumps(groups))
+    part.replace(path)  # both workers write the same groups; either file is whole
+
+
+def _groups_file() -> Path:
+    return Path(os.environ['ACTIVESURV_TEST_SESSION_DIR']) / 'xdist_groups.json'
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``--dist loadgroup`` with the groups the workers wrote: the graph tier is one unit of
+    work (one worker, one run at a time), every other module a unit of its own."""
+    if config.getvalue('dist') != 'loadgroup':
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class GraphWorker(LoadScopeScheduling):  # type: ignore[misc]
+        groups: dict[str, str] | None = None
+
+        def _split_scope(self, nodeid: str) -> str:
+            if self.groups is None:  # read once every worker has collected
+                path = _groups_file()
+                self.groups = json.loads(path.read_text()) if path.exists() else {}
+            return self.groups.get(nodeid) or nodeid.split('::')[0]
+
+    return GraphWorker(config, log)
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -92,14 +92,16 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def _one_graph_worker(items: list[pytest.Item]) -> None:
-    """Order a worker's collection (graph tier first, the heaviest last, the rest after) and
-    write each test's group where the controller's scheduler reads it: xdist's own
-    ``xdist_group`` rewrites node ids, which pytest 9 no longer lets it do."""
+    """Order a worker's collection (graph tier first, the colcon build's test and the heaviest
+    last, the rest after) and write each test's group where the controller's scheduler reads
+    it: xdist's own ``xdist_group`` rewrites node ids, which pytest 9 no longer lets it do."""
 
     def rank(item: pytest.Item) -> tuple[int, int]:
         if item.get_closest_marker('graph') is None:
             return (2, 0)
         name = item.path.name
+        if name == COLCON_TEST:  # its build, started with the session, is done by then
+            return (1, -1)
         return (1, HEAVY_LAST.index(name)) if name in HEAVY_LAST else (0, 0)
 
     items.sort(key=rank)  # stable: the order within a file is kept

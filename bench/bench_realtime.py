@@ -16,7 +16,9 @@
   run's costliest callbacks (``ACTIVESURV_CALLBACK_CPU``: process, callback, calls, CPU
   seconds, ms a call; a callback's CPU includes what its container's members do with what it
   hands them in process), and ``cpu_in_callbacks`` the share of the nodes' CPU spent in
-  callbacks at all (the rest: the executor and DDS).
+  callbacks at all (the rest: the executor and DDS). ``instant_occupancy``: the first run's
+  median over its demands of the callbacks' CPU from the instant to the estimate over two
+  cores x that time (:mod:`activesurv_evaluation.timeline`): near 1, the wait is the CPU.
 * ``compute_ms``: the compute on each demand's critical path, median over the same demands:
   the slowest of its cameras' imaging of its frame (each observation carries its imager's
   ``compute_time``; the cameras image in parallel) plus fusion's processing (the estimate's
@@ -80,6 +82,7 @@ def _run(
     from activesurv_bringup.experiments.options import RunOptions, scoped_environ
     from activesurv_common.ros import callback_cpu
     from activesurv_evaluation.runs import load_run
+    from activesurv_evaluation.timeline import write_timeline
 
     config = None
     if k is not None:  # the packaged experiments with another k
@@ -92,7 +95,10 @@ def _run(
     with scoped_environ({callback_cpu.ENV: '1'} if timed else {}):
         opts = RunOptions(rtf=rtf, processes=processes)
         run_graph(exp, tmp / name, opts, progress=lambda _: None)
-    return load_run(tmp / name), json.loads((tmp / name / 'cpu.json').read_text())
+    doc, cpu = load_run(tmp / name), json.loads((tmp / name / 'cpu.json').read_text())
+    if timed and write_timeline(tmp / name, CORES, rtf, doc['demands']) is not None:
+        cpu['timeline'] = json.loads((tmp / name / 'timeline.json').read_text())
+    return doc, cpu
 
 
 def _ok(doc: dict[str, Any]) -> tuple[int, int]:
@@ -185,7 +191,7 @@ def _series(
     tmp: Path, processes: str, runs: int, k: int | None = None, two_objects: bool = False
 ) -> dict[str, Any]:
     oks, lat, heard, cores, first_cpu, compute = [], [], [], [], None, []
-    by_callback, in_callbacks = None, None
+    by_callback, in_callbacks, occupancy = None, None, None
     running: list[float] = []
     shared: list[float] = []
     n = 0
@@ -216,6 +222,7 @@ def _series(
             first_cpu = cpu['cpu_seconds']
             by_callback = cpu.get('top_callbacks')
             in_callbacks = _in_callbacks(cpu)
+            occupancy = (cpu.get('timeline') or {}).get('median_occupancy')
     return {
         'ok': f'{min(o for o, _ in oks)}/{n}',
         'ok_with_k': f'{min(k for _, k in oks)}/{n}',
@@ -240,6 +247,7 @@ def _series(
         'cpu_by_process': first_cpu,
         'cpu_by_callback': by_callback,
         'cpu_in_callbacks': in_callbacks,
+        'instant_occupancy': occupancy,
         'all_ok': all(o == n for o, _ in oks),
     }
 
@@ -274,7 +282,7 @@ def run() -> dict[str, object]:
         for k in (*shown, 'latency_p90_to_compute', 'cpu_cores', 'cpu_cores_running'):
             out[f'two_objects_{k}'] = two[k]
         one = _series(tmp, 'containers', RUNS, k=1)
-        for k in shown:
+        for k in (*shown, 'instant_occupancy'):
             out[f'one_camera_{k}'] = one[k]
         best = 1.0 if all_ok else 0.0
         attempts: dict[str, list[str]] = {}

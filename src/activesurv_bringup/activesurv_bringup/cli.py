@@ -49,6 +49,7 @@ from activesurv_bringup.experiments.options import PROCESSES, RECORD_FRAMES, Run
 from activesurv_bringup.files import cache_dir, new_output_dir, timestamped_dir
 from activesurv_bringup.rig.parsers import add_hardware_arguments, add_rig_arguments
 from activesurv_common.lifetime import STOP_SIGNALS, StopRequested
+from activesurv_common.ros import callback_cpu
 from activesurv_launch.domains import isolate
 
 if TYPE_CHECKING:  # the checks and the runs load what they need: after --help
@@ -587,7 +588,14 @@ def _simulated(
         say(f'Fast DDS profile {opts.dds_profile}')
     with results_on_stop(out):
         run_graph(exp, out, opts, progress=say)
-    return finish_run(out)
+    doc = finish_run(out)
+    if callback_cpu.enabled():  # the processes traced their calls: what ran at an instant
+        from activesurv_evaluation.timeline import write_timeline
+
+        png = write_timeline(out, os.cpu_count() or 1, opts.rtf)
+        if png is not None:
+            say(f'what ran around the median demand: {png} (every demand: timeline.json)')
+    return doc
 
 
 @contextlib.contextmanager

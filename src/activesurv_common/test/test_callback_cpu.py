@@ -75,6 +75,15 @@ def test_a_process_writes_its_callbacks_cpu_when_asked(tmp_path: Path) -> None:
     heard_calls, _ = doc['callbacks']['sub probe probe_topic']
     assert heard_calls == int(heard)
     assert doc['publish']['/probe_topic'][0] == calls
+    # The trace: every call, on the wall clock, with its CPU.
+    trace = json.loads((tmp_path / 'calls' / 'probe.trace').read_text())
+    assert trace['process'] == '/probe'
+    burns = [c for c in trace['calls'] if c[3] == 'timer probe burn']
+    assert len(burns) == calls
+    assert all(b - a >= cpu * 0.99 and cpu >= 0.009 for a, b, cpu, _ in burns)
+    assert sum(c[3] == 'pub /probe_topic' for c in trace['calls']) == calls
+    ends = [c[1] for c in trace['calls']]
+    assert ends == sorted(ends)  # in the order the calls ended
 
     collected = callback_cpu.collect(tmp_path / 'calls')
     assert list(collected) == ['/probe']

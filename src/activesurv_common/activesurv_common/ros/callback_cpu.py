@@ -10,6 +10,10 @@ times every subscription and timer callback of its nodes on the thread's CPU clo
      "publish": {"/demand_horizon": [108, 0.015], ...}}
 
 (``[calls, CPU seconds]``; ``cpu_seconds`` is the process's whole CPU, its start included).
+Beside it, ``<process>.trace`` holds each call (the last :data:`TRACE_LIMIT`) as
+``[wall start, wall end, CPU seconds, name]`` (``time.time()``, one clock for every process of
+the machine; publishes named ``pub <topic>``): what ran where around a demand instant
+(:mod:`activesurv_evaluation.timeline` draws it).
 A callback's CPU includes what it hands on in process: the members of a container that hear
 a topic in process (:mod:`activesurv_common.ros.local_topics`) run inside the publisher's
 callback, and its publishing. Unset (the default) nothing is wrapped. ``activesurv experiment``
@@ -19,6 +23,7 @@ The cost of the timing itself is two clock reads a callback (about a microsecond
 
 from __future__ import annotations
 
+import collections
 import functools
 import json
 import os
@@ -32,6 +37,9 @@ ENV = 'ACTIVESURV_CALLBACK_CPU'
 
 _TALLY: dict[str, dict[str, list[float]]] = {'callbacks': {}, 'publish': {}}
 _INSTALLED = [False]
+TRACE_LIMIT = 200_000
+"""Calls kept in the trace (the last ones; about 100 bytes each)."""
+_TRACE: collections.deque[tuple[float, float, float, str]] = collections.deque(maxlen=TRACE_LIMIT)
 
 
 def enabled() -> bool:
@@ -51,16 +59,18 @@ YES = ('1', 'true', 'yes', 'on')
 
 def _timed(kind: str, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
     entry = _TALLY[kind].setdefault(name, [0, 0.0])
-    clock = time.thread_time
+    clock, wall, trace = time.thread_time, time.time, _TRACE.append
 
     @functools.wraps(fn)  # rclpy reads the callback's signature (message info or not)
     def timed(*args: Any, **kwargs: Any) -> Any:
-        t0 = clock()
+        w0, t0 = wall(), clock()
         try:
             return fn(*args, **kwargs)
         finally:
+            cpu = clock() - t0
             entry[0] += 1
-            entry[1] += clock() - t0
+            entry[1] += cpu
+            trace((w0, wall(), cpu, name))
 
     return timed
 
@@ -92,12 +102,14 @@ def install() -> bool:
 
     def timed_publish(self: Publisher, msg: Any) -> None:
         entry = _TALLY['publish'].setdefault(self.topic_name, [0, 0.0])
-        t0 = time.thread_time()
+        w0, t0 = time.time(), time.thread_time()
         try:
             publish(self, msg)
         finally:
+            cpu = time.thread_time() - t0
             entry[0] += 1
-            entry[1] += time.thread_time() - t0
+            entry[1] += cpu
+            _TRACE.append((w0, time.time(), cpu, f'pub {self.topic_name}'))
 
     Node.create_subscription = create_subscription  # type: ignore[method-assign]
     Node.create_timer = create_timer  # type: ignore[method-assign,assignment]
@@ -112,9 +124,9 @@ def tally() -> dict[str, dict[str, list[float]]]:
 
 
 def write(process: str) -> Path | None:
-    """Write this process's tally to ``$ACTIVESURV_CALLBACK_CPU/<process>.json`` (if it timed
-    anything); returns the file. A directory that cannot be written is skipped (a diagnostic
-    never stops a node)."""
+    """Write this process's tally to ``$ACTIVESURV_CALLBACK_CPU/<process>.json`` and its calls
+    to ``<process>.trace`` beside it (if it timed anything); returns the tally's file. A
+    directory that cannot be written is skipped (a diagnostic never stops a node)."""
     if not _INSTALLED[0]:
         return None
     own = os.times()
@@ -125,6 +137,8 @@ def write(process: str) -> Path | None:
         directory.mkdir(parents=True, exist_ok=True)
         path = directory / f'{stem}.json'
         path.write_text(json.dumps(doc, indent=1) + '\n')
+        calls = [[round(a, 6), round(b, 6), round(c, 6), n] for a, b, c, n in _TRACE]
+        (directory / f'{stem}.trace').write_text(json.dumps({'process': process, 'calls': calls}))
     except OSError:
         return None
     return path

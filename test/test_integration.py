@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -35,18 +36,24 @@ KEYS = {
 }
 
 
-def _run(*args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
+def _run(
+    *args: str, timeout: float = 600.0, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [ACTIVESURV, *args], capture_output=True, text=True, timeout=timeout, check=False
-    )
+        [ACTIVESURV, *args], capture_output=True, text=True, timeout=timeout, check=False,
+        env=None if env is None else {**os.environ, **env},
+    )  # fmt: skip
 
 
 @pytest.fixture(scope='module')
 def graph_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A Set A fast graph run, its processes timing their callbacks (a diagnostic of about a
+    microsecond a call: ACTIVESURV_CALLBACK_CPU)."""
     out = tmp_path_factory.mktemp('graph') / 'A_fast'
     r = _run(
-        'experiment', '--set', 'A', '--system', 'fast', '--out', str(out), '--seed', str(SEED)
-    )
+        'experiment', '--set', 'A', '--system', 'fast', '--out', str(out), '--seed', str(SEED),
+        env={'ACTIVESURV_CALLBACK_CPU': '1'},
+    )  # fmt: skip
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert 'demand 10 of 10 answered' in r.stdout  # progress was shown
     return out
@@ -329,6 +336,24 @@ def test_cpu_json_holds_the_whole_window_and_the_running_rate(graph_run: Path) -
     assert running['cores'] == pytest.approx(
         running['cpu_seconds'] / running['wall_seconds'], abs=1e-3
     )
+
+
+def test_a_traced_run_itemises_its_callbacks_and_draws_an_instant(graph_run: Path) -> None:
+    """With ACTIVESURV_CALLBACK_CPU every process's callbacks are in ``cpu.json``, and the
+    calls traced around each demand: ``timeline.png`` and ``timeline.json``."""
+    cpu = json.loads((graph_run / 'cpu.json').read_text())
+    assert {'/core', '/fusion', '/cam1'} <= set(cpu['callbacks'])
+    assert cpu['top_callbacks'][0]['cpu_s'] > 0.0
+    assert (graph_run / 'timeline.png').stat().st_size > 10_000
+    timeline = json.loads((graph_run / 'timeline.json').read_text())
+    doc = json.loads((graph_run / 'results.json').read_text())
+    estimated = [d['index'] for d in doc['demands'] if d['timing']['estimate'] is not None]
+    assert [r['index'] for r in timeline['demands']] == estimated
+    by_index = {d['index']: d for d in doc['demands']}
+    for row in timeline['demands']:
+        estimate = by_index[row['index']]['timing']['estimate']
+        assert row['latency_ms'] == pytest.approx(1e3 * estimate, abs=0.01)
+        assert 0.0 < row['occupancy'] <= 1.0  # the cameras' imaging is inside every window
 
 
 def test_viewers_markers_are_thinned_but_every_new_role_is_shown(graph_run: Path) -> None:

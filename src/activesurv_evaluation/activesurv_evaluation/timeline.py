@@ -118,9 +118,8 @@ def plot_timeline(
     lanes = sorted(traces, key=lambda p: (p.startswith('cam') is False, p != FUSION, p))
     fig, ax = plt.subplots(figsize=(9.0, 0.45 * len(lanes) + 1.4))
     for y, process in enumerate(lanes):
-        for a, b, cpu, name in traces[process]:
-            if b < lo or a > hi:
-                continue
+        shown = [c for c in traces[process] if c[1] >= lo and c[0] <= hi]
+        for a, b, cpu, name in shown:
             pub = name.startswith('pub ')
             height = 0.25 if pub else 0.6
             x0, width = 1e3 * (a - window.instant), 1e3 * (b - a)
@@ -130,9 +129,12 @@ def plot_timeline(
                 ax.plot(x0, y + 0.4, 'v', color='tab:green', ms=6)
             elif name == ESTIMATE:
                 ax.plot(x0, y + 0.4, '*', color='tab:red', ms=10)
-            elif not pub and width > 0.08 * 1e3 * (hi - lo):
-                short = name.split(' ', 1)[-1].replace('_schedule.', '')
-                ax.text(x0, y - 0.42, short[:48], fontsize=6, va='bottom')
+        longest = max((c for c in shown if not c[3].startswith('pub ')), default=None,
+                      key=lambda c: c[1] - c[0])  # fmt: skip
+        if longest is not None:
+            name = longest[3].split(' ', 1)[-1].replace('_schedule.', '')
+            x0 = max(1e3 * (longest[0] - window.instant), 1e3 * (lo - window.instant))
+            ax.text(x0, y - 0.42, name[:60], fontsize=6, va='bottom')
     ax.axvline(0.0, color='k', lw=1)
     ax.set_yticks(range(len(lanes)))
     ax.set_yticklabels(lanes, fontsize=8)
@@ -143,7 +145,8 @@ def plot_timeline(
         f'{title}: demand {window.index}, estimate {1e3 * window.latency:.1f} ms after the '
         f'instant; callbacks used {1e3 * cpu:.1f} ms of CPU in it '
         f'({100 * cpu / (cores * window.latency):.0f} % of {cores} cores)\n'
-        'light: wall time of a call, dark: its CPU; v observation published, * estimate',
+        'light: wall time of a call; dark: its CPU time (drawn from its start); '
+        'v: an observation published, *: the estimate',
         fontsize=8,
     )
     ax.grid(axis='x', alpha=0.3)

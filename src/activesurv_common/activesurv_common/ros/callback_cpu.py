@@ -18,7 +18,7 @@ A callback's CPU includes what it hands on in process: the members of a containe
 a topic in process (:mod:`activesurv_common.ros.local_topics`) run inside the publisher's
 callback, and its publishing. Unset (the default) nothing is wrapped. ``activesurv experiment``
 with the variable set (any value) collects the files into ``cpu.json`` (``callbacks``).
-The cost of the timing itself is four clock reads and an append a callback (about 2 µs).
+The cost of the timing itself is four clock reads and an append a callback (1.4 µs here, `timeit`).
 """
 
 from __future__ import annotations

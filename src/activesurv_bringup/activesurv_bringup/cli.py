@@ -592,7 +592,7 @@ def _simulated(
     if callback_cpu.enabled():  # the processes traced their calls: what ran at an instant
         from activesurv_evaluation.timeline import write_timeline
 
-        png = write_timeline(out, os.cpu_count() or 1, opts.rtf)
+        png = write_timeline(out, len(os.sched_getaffinity(0)), opts.rtf)  # as make bench
         if png is not None:
             say(f'what ran around the median demand: {png} (every demand: timeline.json)')
     return doc

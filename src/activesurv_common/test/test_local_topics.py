@@ -178,3 +178,48 @@ def test_publish_together_hands_every_message_over_before_any_goes_over_dds(
     finally:
         for node in (camera, imager, viewer):
             node.destroy_node()
+
+
+def test_publish_together_hands_the_dds_copies_to_later_only_when_taken_in_process(
+    rclpy_context: Any, enabled: None
+) -> None:
+    """A demand frame its imager took in process: the DDS copies (bag, viewers) wait for
+    ``later``; a topic nobody in the process takes goes over DDS at once."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    camera = rclpy_context.create_node('later_camera')
+    imager = rclpy_context.create_node('later_imager')
+    steps: list[str] = []
+    waiting: list[Callable[[], None]] = []
+    try:
+        info_pub = local_topics.publisher(camera, CameraInfo, '/lt2/info', qos.SENSOR_RELIABLE)
+        image_pub = local_topics.publisher(camera, Image, '/lt2/frame', qos.SENSOR_RELIABLE)
+        alone_pub = local_topics.publisher(camera, Image, '/lt2/alone', qos.SENSOR_RELIABLE)
+        for msg_type, topic in ((CameraInfo, '/lt2/info'), (Image, '/lt2/frame')):
+            name = topic.rsplit('/', 1)[1]
+            local_topics.subscription(
+                imager, msg_type, topic, lambda m, n=name: steps.append(f'local {n}'), qos.SENSOR
+            )
+        for pub in (info_pub, image_pub, alone_pub):
+            name = pub.topic_name.rsplit('/', 1)[1]
+            pub._pub.publish = lambda msg, n=name: steps.append(f'dds {n}')
+        assert info_pub.local_subscriptions() == 1
+        assert alone_pub.local_subscriptions() == 0
+        info = CameraInfo()
+        info.header.stamp.sec, info.header.frame_id = 5, 'cam1_optical_frame'
+        local_topics.publish_together(
+            (info_pub, info), (image_pub, _image(5)), later=waiting.append
+        )
+        assert steps == ['local info', 'local frame']
+        assert len(waiting) == 1
+        waiting.pop()()
+        assert steps[2:] == ['dds info', 'dds frame']
+        steps.clear()
+        local_topics.publish_together(
+            (info_pub, info), (alone_pub, _image(6)), later=waiting.append
+        )
+        assert steps == ['local info', 'dds info', 'dds alone']
+        assert not waiting
+    finally:
+        for node in (camera, imager):
+            node.destroy_node()

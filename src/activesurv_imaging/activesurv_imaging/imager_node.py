@@ -10,7 +10,9 @@ decisions are :class:`activesurv_imaging.capture.CaptureCore`'s; this node only 
 Subscribes: capture_request, <camera_id>/image_raw, <camera_id>/camera_info,
     <camera_id>/stage/joint_states (unless the mount is static).
 Publishes: marker_observations, <camera_id>/marker_annotations (ImageMarker: the ellipse, its
-    centre and the chosen normal, or the failure), <camera_id>/imager/heartbeat (Header, 10 Hz:
+    centre and the chosen normal, or the failure) and <camera_id>/demand_frame
+    (``record_frames``), both ``viewers_delay`` s after the observation
+    (:mod:`activesurv_imaging.ros.viewers`), <camera_id>/imager/heartbeat (Header, 10 Hz:
     the dispatcher stops assigning a camera whose beat stops), /diagnostics.
 Parameters: see ``config/imager.yaml`` (typed: :class:`activesurv_imaging.capture.ImagerConfig`).
 """
@@ -22,9 +24,8 @@ from collections import Counter
 from typing import Any
 
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
-from visualization_msgs.msg import ImageMarker
 
 from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import (
@@ -41,19 +42,13 @@ from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.instants import periodic
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
-from activesurv_common.statuses import ObservationStatus
-from activesurv_imaging.annotations import annotation_shapes
 from activesurv_imaging.capture import CaptureCore, core_from_parameters
-from activesurv_imaging.conversions import (
-    annotation_markers,
-    demand_frame_msg,
-    info_disagreement,
-    observation_to_msg,
-)
+from activesurv_imaging.conversions import info_disagreement, observation_to_msg
 from activesurv_imaging.errors import VisionErrors
 from activesurv_imaging.imager_params import PARAMS
 from activesurv_imaging.kernels import warm_up
 from activesurv_imaging.ros.software_trigger import SoftwareTrigger
+from activesurv_imaging.ros.viewers import ObservationViews
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation
 
 
@@ -77,17 +72,11 @@ class ImagerNode(Node):
         )
         beat = topics.heartbeat(self.camera_id)
         self._beat_pub = self.create_publisher(Header, beat, qos.SENSOR)
-        self._ann_pub = self.create_publisher(
-            ImageMarker, topics.marker_annotations(self.camera_id), qos.EVENTS
-        )
         self._diag_pub = self.create_publisher(
             diagnostics.DiagnosticArray, topics.DIAGNOSTICS, qos.DIAGNOSTICS
         )
-        self._frame_pub = (
-            self.create_publisher(CompressedImage, topics.demand_frame(self.camera_id), qos.EVENTS)
-            if v['record_frames']
-            else None
-        )
+        delay = float(v['viewers_delay'])  # after the estimate: the cores image till then
+        self.views = ObservationViews(self, self.camera_id, bool(v['record_frames']), delay)
         self.create_subscription(
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
@@ -159,23 +148,13 @@ class ImagerNode(Node):
         for obs in self.core.poll(self._now()):
             self.counts[obs.status.name] += 1
             self._obs_pub.publish(observation_to_msg(obs, now=self._now()))
-            cam = self.core.camera
-            size = (cam.width, cam.height) if cam is not None else (640, 480)
-            shapes = annotation_shapes(obs, cam.project if cam else None, image_size=size)
-            frame = f'{self.camera_id}_optical_frame'
-            for m in annotation_markers(shapes, obs.stamp, frame, obs.demand_index):
-                self._ann_pub.publish(m)
-            if obs.status is not ObservationStatus.OK:
-                why = f'demand {obs.demand_index}: {obs.status.name}: {obs.reason}'
-                self.get_logger().warning(why)
-            self._record_frame(obs.stamp, frame)
+            found = self.core.frames.closest(obs.stamp, 1e-6) if math.isfinite(obs.stamp) else None
+            image = found[1] if found is not None and self.views.records_frames else None
+            self.views.publish(obs, self.core.camera, image)  # annotations, frame: later
 
-    def _record_frame(self, exposed: float, frame_id: str) -> None:
-        """The frame a demand was measured on, to look at and replay (``record_frames``)."""
-        if self._frame_pub is not None and math.isfinite(exposed):
-            found = self.core.frames.closest(exposed, 1e-6)
-            if found is not None:
-                self._frame_pub.publish(demand_frame_msg(found[1], frame_id))
+    def flush(self) -> None:
+        """The views still waiting go out (the node stops)."""
+        self.views.flush()
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')
@@ -193,7 +172,7 @@ class ImagerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node('imager', ImagerNode, args)
+    return run_node('imager', ImagerNode, args, on_stop=ImagerNode.flush)
 
 
 if __name__ == '__main__':

@@ -64,6 +64,14 @@ PARAMS = (
         'trigger_lead', 0.001, 's the trigger service is called before the instant', minimum=0.0
     ),
     Param('record_frames', False, 'publish the frame of each demand (PNG) on <cam>/demand_frame'),
+    Param(
+        'viewers_delay',
+        0.03,
+        "s after an observation before its annotations and frame go out (the other cameras' "
+        'imaging first); 0: at once',
+        minimum=0.0,
+        maximum=1.0,
+    ),
     # The camera's mount (what a hand-started imager needs: commissioning writes them).
     *(Param(name, default, text) for name, (default, text) in MOUNT_PARAMETERS.items()),
 )

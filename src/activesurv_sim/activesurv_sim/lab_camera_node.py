@@ -55,7 +55,7 @@ LAB_PARAMS = (
     Param('drop_rate', 0.01, 'fraction of frames that never arrive', minimum=0.0, maximum=1.0),
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
-OWN_CLOCK = ('frame_phase', 'own_trigger')  # it exposes on its own clock
+OWN_CLOCK = ('frame_phase', 'own_trigger', 'remote_delay')  # own clock; no imager beside it
 CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name not in OWN_CLOCK)
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
 

@@ -5,18 +5,18 @@ Subscribes:
     <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
     capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
         the demand instant (like a hardware trigger armed ahead of time).
-    sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth (and its rates)
-        at a requested instant as already determined; the frame is rendered ahead with it.
-        It goes out at the instant on the camera's own trigger (``own_trigger``: a steady
-        timer on ``/sim/clock_origin``) if the stage's state of the instant is still the one
-        it was rendered with, else once the states of the instant match
-        (``activesurv_sim.sim_camera``).
-Publishes: <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info.
+    sim/planned_object_state, sim/<camera_id>/planned_joint_states: the truth at a requested
+        instant as planned; the frame is rendered ahead with it and goes out at the instant
+        on the camera's own trigger (``own_trigger``) if the stage's state of the instant is
+        the one it was rendered with, else once they match (``activesurv_sim.sim_camera``).
+Publishes: <camera_id>/image_raw (sensor_msgs/Image, mono8) and <camera_id>/camera_info; a
+    demand frame its imager took in process goes over DDS ``remote_delay`` s later.
 Parameters: see ``config/sim_camera.yaml``; the mount parameters place the camera.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from activesurv_common.ros.conversions import (
     sec_to_time,
     time_to_sec,
 )
+from activesurv_common.ros.deferred import Deferred
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
@@ -68,6 +69,7 @@ class SimCameraNode(Node):
         self._image_pub = local_topics.publisher(self, Image, image, qos.SENSOR_RELIABLE)
         info = topics.camera_info(self.camera_id)
         self._info_pub = local_topics.publisher(self, CameraInfo, info, qos.SENSOR_RELIABLE)
+        self.later = Deferred(self, float(g('remote_delay').value))  # after the estimate
         if str(g('payload').value) == 'board':  # commissioning: the table's stage carries it
             table = topics.joint_states(TABLE_ID)
             self.create_subscription(JointState, table, self._on_table, qos.STATE)
@@ -80,19 +82,11 @@ class SimCameraNode(Node):
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
         )
         self._pending: set[float] = set()
-        self._ahead = (
-            AheadFrames(
-                self,
-                self.sim,
-                self.camera_id,
-                self._pending,
-                lambda t, frame: self._send(t, frame, True),
-                bool(g('own_trigger').value),
-                lambda: float(self.get_parameter('trigger_delay').value),
-            )
-            if bool(g('render_ahead').value)
-            else None
-        )
+        self._ahead: AheadFrames | None = None
+        if bool(g('render_ahead').value):
+            send, own = partial(self._send, ahead=True), bool(g('own_trigger').value)
+            args = (self, self.sim, self.camera_id, self._pending, send, own, self._delay)
+            self._ahead = AheadFrames(*args)
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
         rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
@@ -109,6 +103,9 @@ class SimCameraNode(Node):
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def _delay(self) -> float:
+        return float(self.get_parameter('trigger_delay').value)
 
     def _on_object(self, msg: ObjectState) -> None:
         t = time_to_sec(msg.header.stamp)
@@ -166,9 +163,13 @@ class SimCameraNode(Node):
         # its imager images the frame before either goes over DDS.
         info = camera_info_from_model(self.info_model, self.frame_id, stamp)
         image = gray_to_image(gray, self.frame_id, stamp)
-        local_topics.publish_together((self._info_pub, info), (self._image_pub, image))
+        pubs = (self._info_pub, info), (self._image_pub, image)
+        local_topics.publish_together(*pubs, later=self.later if ahead else None)
         self.frames_published += 1
         self.frames_ahead += int(ahead)
+
+    def flush(self) -> None:
+        self.later.flush()  # at stop: the DDS copies still waiting
 
     def _on_tick(self) -> None:
         g = self.get_parameter
@@ -190,7 +191,8 @@ class SimCameraNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node('sim_camera', SimCameraNode, args, errors=(SimError, CommonError))
+    errors = (SimError, CommonError)
+    return run_node('sim_camera', SimCameraNode, args, SimCameraNode.flush, errors)
 
 
 if __name__ == '__main__':

@@ -51,4 +51,11 @@ PARAMS = (
     Param('inject_frozen', False, 'fault: keep sending the first frame'),
     Param('render_ahead', True, 'render a requested frame when its truth is planned'),
     Param('own_trigger', True, 'a frame rendered ahead goes out at its instant, own clock'),
+    Param(
+        'remote_delay',
+        0.03,
+        's a demand frame imaged in process waits before its DDS copy (bag, viewers); 0: none',
+        minimum=0.0,
+        maximum=1.0,
+    ),
 )

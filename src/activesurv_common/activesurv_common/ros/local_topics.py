@@ -78,6 +78,10 @@ class LocalPublisher:
         """Over DDS only."""
         self._pub.publish(msg)
 
+    def local_subscriptions(self) -> int:
+        """The subscriptions of this process that take the topic in process."""
+        return len(_SUBSCRIBERS.get(self.topic_name, ()))
+
     def get_subscription_count(self) -> int:
         return int(self._pub.get_subscription_count())
 
@@ -89,15 +93,31 @@ def publisher(node: Node, msg_type: Any, topic: str, qos_profile: QoSProfile) ->
     return LocalPublisher(node, msg_type, topic, qos_profile)
 
 
-def publish_together(*items: tuple[Any, Any]) -> None:
+def publish_together(
+    *items: tuple[Any, Any], later: Callable[[Callable[[], None]], None] | None = None
+) -> None:
     """Publish each ``(publisher, message)`` in process first, all in order, then over DDS:
     the process's consumers act on them all (a camera's imager on its intrinsics and its
-    frame) before any DDS copy is made. Plain rclpy publishers publish in the second pass."""
+    frame) before any DDS copy is made. Plain rclpy publishers publish in the second pass.
+
+    ``later`` (a :class:`~activesurv_common.ros.deferred.Deferred`): when every topic has
+    been taken in process, the DDS pass is handed to it (the copies are then for the bag and
+    the viewers, off the instant's critical path); otherwise it runs now.
+    """
     for pub, msg in items:
         if isinstance(pub, LocalPublisher):
             pub.publish_local(msg)
-    for pub, msg in items:
-        (pub.publish_remote if isinstance(pub, LocalPublisher) else pub.publish)(msg)
+
+    def remote() -> None:
+        for pub, msg in items:
+            (pub.publish_remote if isinstance(pub, LocalPublisher) else pub.publish)(msg)
+
+    if later is not None and all(
+        isinstance(pub, LocalPublisher) and pub.local_subscriptions() for pub, _ in items
+    ):
+        later(remote)
+    else:
+        remote()
 
 
 def subscription(

@@ -356,6 +356,36 @@ def test_a_traced_run_itemises_its_callbacks_and_draws_an_instant(graph_run: Pat
         assert 0.0 < row['occupancy'] <= 1.0  # the cameras' imaging is inside every window
 
 
+def test_what_follows_an_observation_waits_until_the_instant_has_passed(graph_run: Path) -> None:
+    """A camera's call at the instant publishes the observation and leaves the rest: its
+    annotations and the DDS copy of its frame (for the bag and the viewers) go out from a
+    deferred call ``viewers_delay`` / ``remote_delay`` (30 ms) later; the bag still has them
+    (``test_bag_is_a_standard_mcap_rosbag2``)."""
+    from activesurv_evaluation.timeline import load_traces
+
+    traces = load_traces(graph_run / 'logs' / 'callbacks')
+    annotations = copies = 0
+    for proc, calls in traces.items():
+        if not proc.startswith('cam'):
+            continue
+        later = [(c[0], c[1]) for c in calls if c[3].endswith('Deferred._on_timer')]
+        observed = sorted(c[0] for c in calls if c[3] == 'pub /marker_observations')
+        for start, end, _, name in calls:
+            deferred = any(a <= start and end <= b for a, b in later)
+            if name.endswith('/image_raw') and deferred:
+                copies += 1
+            if not name.endswith('/marker_annotations'):
+                continue
+            assert deferred, f'{proc}: annotations published at the instant'
+            since = start - max(t for t in observed if t <= start)
+            assert since >= 0.025, (
+                f'{proc}: annotations {1e3 * since:.1f} ms after the observation'
+            )
+            annotations += 1
+    assert annotations >= 10
+    assert copies >= 10  # the demand frames' DDS copies
+
+
 def test_viewers_markers_are_thinned_but_every_new_role_is_shown(graph_run: Path) -> None:
     """The dispatcher's markers go out at most every ``marker_period`` (0.2 s) of its plans
     (10 Hz), but a plan whose roles changed goes out at once: a viewer sees every assignment."""

@@ -92,3 +92,24 @@ def test_a_zero_delay_runs_at_once_and_a_bad_delay_is_refused(rclpy_context: Any
                 Deferred(node, bad)
     finally:
         node.destroy_node()
+
+
+def test_a_flush_logs_work_that_fails_and_runs_the_rest(rclpy_context: Any) -> None:
+    """At a stop the context may be going: one publish that raises does not cost the rest."""
+    node = rclpy_context.create_node('deferred_failing')
+    try:
+        later = Deferred(node, 1.0)
+        done: list[int] = []
+
+        def broken() -> None:
+            raise RuntimeError('context is not valid')
+
+        later(lambda: done.append(1))
+        later(broken)
+        later(lambda: done.append(3))
+        later.flush()
+        assert done == [1, 3]
+        assert later.failed == 1
+        assert len(later) == 0
+    finally:
+        node.destroy_node()

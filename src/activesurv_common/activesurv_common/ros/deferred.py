@@ -33,6 +33,7 @@ class Deferred:
         self._queue: deque[tuple[float, Callable[[], None]]] = deque()
         self._timer: Timer | None = None
         self.ran = 0  # work done, on time or flushed
+        self.failed = 0  # work that raised when flushed
 
     def __len__(self) -> int:
         return len(self._queue)
@@ -47,10 +48,16 @@ class Deferred:
             self._arm(self.delay)
 
     def flush(self) -> None:
-        """Run all the work waiting, now, in order."""
+        """Run all the work waiting, now, in order (a node's stop). Work that raises (its
+        publisher's context already shut down) is logged and the rest still runs."""
         self._disarm()
         while self._queue:
-            self._run(self._queue.popleft()[1])
+            try:
+                self._run(self._queue.popleft()[1])
+            except Exception as exc:  # any work's error: the rest must still go out
+                self.failed += 1
+                why = f'deferred work failed at stop: {type(exc).__name__}: {exc}'
+                self._node.get_logger().warning(why)
 
     def _arm(self, wait: float) -> None:
         self._timer = self._node.create_timer(max(wait, 0.0), self._on_timer, clock=self._steady)

@@ -50,7 +50,10 @@ class Deferred:
     def flush(self) -> None:
         """Run all the work waiting, now, in order (a node's stop). Work that raises (its
         publisher's context already shut down) is logged and the rest still runs."""
-        self._disarm()
+        try:
+            self._disarm()
+        except Exception:  # the node's context already gone: its timer goes with it
+            self._timer = None
         while self._queue:
             try:
                 self._run(self._queue.popleft()[1])

@@ -113,6 +113,8 @@ class SensorModel:
         if cb.shape != (6,) or not np.all(np.isfinite(cb)) or np.any(cb < 0.0):
             raise SensorModelError(f'blur_coefficients must be 6 finite values >= 0, got {cb}')
         object.__setattr__(self, 'blur_coefficients', cb)
+        # Asked on every view the planner weighs: kept, not recomputed (the model is frozen).
+        object.__setattr__(self, '_models_blur', bool(np.any(cb > 0.0)))
         (d0, d1), (t0, t1) = self.d_range, self.theta_range
         if not (0.0 < d0 < d1 and 0.0 <= t0 < t1 <= math.pi / 2):
             raise SensorModelError(f'invalid ranges d={self.d_range} theta={self.theta_range}')
@@ -129,7 +131,7 @@ class SensorModel:
     @property
     def models_blur(self) -> bool:
         """Whether blur changes the variances (a model measured with optics)."""
-        return bool(np.any(self.blur_coefficients > 0.0))
+        return bool(self.__dict__['_models_blur'])
 
     def variances(self, d: float, theta: float, blur: float = 0.0) -> Array:
         """The six variances (camera frame) at distance ``d``, bearing ``theta`` and image

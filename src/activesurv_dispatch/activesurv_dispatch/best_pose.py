@@ -16,7 +16,7 @@ soft limits.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,6 +107,46 @@ def view_batch(
     return vis[0], d, bearing, inside[0]
 
 
+@dataclass(frozen=True)
+class SingleView:
+    """One camera pose's view of a target (:func:`view_one`): what :func:`view_batch` gives
+    for it, and the pose's rotation and predicted blur that its covariance needs."""
+
+    visibility: float
+    distance: float
+    bearing: float
+    in_view: bool
+    R: Array  # (3, 3) world <- camera
+    blur_px: float  # the predicted image blur (0 when the model does not weigh it)
+
+
+def view_one(
+    sensor: Sensor,
+    q: ArrayLike,
+    target: Target,
+    radius: float,
+    model: SensorModel,
+    occluders: Sequence[Obstacle] = (),
+) -> SingleView:
+    """:func:`view_batch` of one joint vector, with its geometry kept (the same arithmetic)."""
+    qq = np.asarray(q, dtype=np.float64)[None, :]
+    extra: dict[str, Array | None] = {}
+    (vis, inside), d, b = _views(
+        sensor, qq, target, radius, model, 8.0, occluders, (target.sigma,), extra
+    )
+    blur = extra['blur']
+    R = extra['R']
+    assert R is not None
+    return SingleView(
+        float(vis[0][0]),
+        float(d[0]),
+        float(b[0]),
+        bool(inside[0][0]),
+        R[0],
+        0.0 if blur is None else float(blur[0]),
+    )
+
+
 def _views(
     sensor: Sensor,
     q: Array,
@@ -116,10 +156,12 @@ def _views(
     margin_px: float,
     occluders: Sequence[Obstacle],
     sigmas: Sequence[float],
+    extra: dict[str, Array | None] | None = None,
 ) -> tuple[tuple[list[Array], list[Array]], Array, Array]:
     """:func:`view_batch` for the target's position uncertainty taken as each of ``sigmas``
     (only the in-view margins differ: the views' geometry and variances are computed once).
-    Returns ((visibility per sigma, in_view per sigma), distance, bearing)."""
+    Returns ((visibility per sigma, in_view per sigma), distance, bearing); ``extra``, when
+    given, receives the poses' rotations (``R``) and predicted blur (``blur``)."""
     centres, R = camera_frames(sensor, q)
     rel = target.position[None, :] - centres
     d = np.linalg.norm(rel, axis=1)
@@ -131,6 +173,8 @@ def _views(
     v = cam.fy * p[:, 1] / z + cam.cy
     seen = (p[:, 2] > radius) & (bearing < model.max_bearing)
     blur = predicted_blur(sensor, target, rel, d, model)
+    if extra is not None:
+        extra['R'], extra['blur'] = R, blur
     vis = visibility_from_variances(model.variances_batch(d, bearing, blur))
     out_vis, out_in = [], []
     for sigma in sigmas:
@@ -270,22 +314,23 @@ def visibility_at_poses(
     marker_radius: float,
     occluders: Sequence[Obstacle] | None = None,
     only_in_view: bool = True,
+    view: Callable[[str, Array], SingleView] | None = None,
 ) -> float:
     """v_f (eq. 2) of cameras at joint ``poses`` for ``target``: the planner's figure for a
     plan and the evaluation's for what the cameras really saw. ``only_in_view``: a camera
     that would not see the marker (out of view, too oblique, blocked) adds nothing; the
-    evaluation passes False for cameras that did image it."""
+    evaluation passes False for cameras that did image it. ``view``, when given, stands in
+    for :func:`view_one` of (camera, joints) with these arguments (the planner's, which
+    remembers the views it already weighed)."""
     Rs = []
     for c, q in poses.items():
-        s = sensors[c]
-        qq = np.asarray(q, dtype=np.float64)[None, :]
-        _, d, b, inside = view_batch(
-            s, qq, target, marker_radius, model, occluders=occluders or ()
+        qq = np.asarray(q, dtype=np.float64)
+        v = (
+            view(c, qq)
+            if view is not None
+            else view_one(sensors[c], qq, target, marker_radius, model, occluders or ())
         )
-        if only_in_view and not inside[0]:
+        if only_in_view and not v.in_view:
             continue
-        centres, R = camera_frames(s, qq)
-        blur = predicted_blur(s, target, target.position[None, :] - centres, d, model)
-        b_px = 0.0 if blur is None else float(blur[0])
-        Rs.append(model.world_covariance(float(d[0]), float(b[0]), R[0], b_px))
+        Rs.append(model.world_covariance(v.distance, v.bearing, v.R, v.blur_px))
     return fused_visibility(Rs)

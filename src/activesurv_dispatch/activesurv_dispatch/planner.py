@@ -52,12 +52,14 @@ from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.best_pose import (
     VIEW_SIGMAS,
     Candidate,
+    SingleView,
     Target,
     aim_yaw,
     best_achievable_pose,
     blur_loss,
     camera_frames,
     view_batch,
+    view_one,
     visibility_at_poses,
 )
 from activesurv_dispatch.errors import DispatchConfigError
@@ -183,6 +185,8 @@ class DispatchPlanner:
         self._occluders: dict[int, tuple[Obstacle, ...]] = {}
         # Best poses found during the current plan (see rank).
         self._ranked: dict[tuple[str, int, float, bytes, bytes], Candidate] = {}
+        # One pose's view of one demand, as the current plan weighed it (see _view).
+        self._seen: dict[tuple[str, bytes, int, bytes], SingleView] = {}
 
     # -- bookkeeping -------------------------------------------------------------------------
     def serviced(self, index: int) -> None:
@@ -225,21 +229,14 @@ class DispatchPlanner:
         3-5 degrees short)."""
         if old is None:
             return new
-        vis, d, b, inside = view_batch(
-            self.sensors[camera_id],
-            old.joints[None, :],
-            demand.target,
-            self.setup.marker_radius,
-            self.model,
-            occluders=self.occluders(demand),
-        )
-        keep = float(vis[0]) > new.visibility or (
+        v = self._view(camera_id, old.joints, demand)
+        keep = v.visibility > new.visibility or (
             new.visibility <= 0.0
             and self._off_axis(camera_id, old.joints, demand)
             < self._off_axis(camera_id, new.joints, demand)
         )
         if keep:
-            return Candidate(old.joints, float(vis[0]), float(d[0]), float(b[0]), bool(inside[0]))
+            return Candidate(old.joints, v.visibility, v.distance, v.bearing, v.in_view)
         return new
 
     def _off_axis(self, camera_id: str, q: Array, demand: Demand) -> float:
@@ -256,6 +253,34 @@ class DispatchPlanner:
         centre, _ = camera_frames(self.sensors[camera_id], np.asarray(q)[None, :])
         radius = self.setup.marker_radius + VIEW_SIGMAS * demand.target.sigma
         return bool(sight_blocked(centre, demand.position, occluders, radius)[0])
+
+    def _view(self, camera_id: str, q: Array, demand: Demand) -> SingleView:
+        """:func:`view_one` of camera ``camera_id`` at joints ``q`` for ``demand``, weighed
+        once per plan: a plan asks it of the same frozen poses up to three times (is a replan
+        needed, is the old pose better, the fused visibility)."""
+        c = demand.covariance
+        key = (
+            camera_id,
+            q.tobytes(),
+            demand.index,
+            b''.join(
+                a.tobytes()
+                for a in (demand.position, demand.normal, c, demand.velocity)
+                if a is not None
+            ),
+        )
+        seen = self._seen.get(key)
+        if seen is None:
+            seen = view_one(
+                self.sensors[camera_id],
+                q,
+                demand.target,
+                self.setup.marker_radius,
+                self.model,
+                self.occluders(demand),
+            )
+            self._seen[key] = seen
+        return seen
 
     def occluders(self, demand: Demand) -> tuple[Obstacle, ...]:
         """What may stand between a camera and ``demand``'s marker: the cell's obstacles and
@@ -383,15 +408,7 @@ class DispatchPlanner:
             cand = frozen.desired.get(c)
             if cand is None:
                 continue
-            inside = view_batch(
-                self.sensors[c],
-                cand.joints[None, :],
-                new.target,
-                self.setup.marker_radius,
-                self.model,
-                occluders=self.occluders(new),
-            )[3][0]
-            if not inside:
+            if not self._view(c, cand.joints, new).in_view:
                 return True
         return False
 
@@ -403,6 +420,7 @@ class DispatchPlanner:
         self._horizon = list(demands)
         self._occluders = {}
         self._ranked = {}
+        self._seen = {}
         cams = [c for c in self.sensors if c in joints and c not in self.excluded]
         horizon = sorted(
             (d for d in demands if d.index not in self._serviced and d.time > now),
@@ -608,4 +626,5 @@ class DispatchPlanner:
             demand.target,
             self.setup.marker_radius,
             self.occluders(demand),
+            view=lambda c, q: self._view(c, q, demand),
         )

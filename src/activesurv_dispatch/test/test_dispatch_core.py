@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from itertools import pairwise
+from typing import Any
 
 import numpy as np
 import pytest
@@ -151,6 +152,41 @@ def test_replanning_only_outside_the_uncertainty_box() -> None:
     assert moved.assigned() == plan0.assigned()  # same subset, new poses
     cam = next(c for c in moved.assigned() if setup.sensor(c).has_linear)
     assert not np.allclose(moved.assignments[cam].desired, plan0.assignments[cam].desired)
+
+
+def test_a_plan_weighs_each_frozen_view_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plan that keeps its frozen assignment asks the same view of each frozen pose three
+    times (is a replan needed, is the old pose better, the fused visibility): it is weighed
+    once, and the plan's figure is the evaluation's."""
+    from activesurv_dispatch import best_pose
+    from activesurv_dispatch import planner as planner_module
+
+    setup = load_setup(motion='fast')
+    joints = _aimed_joints('fast', 0.25)
+    planner = DispatchPlanner(setup, MODEL, k=3, rho=1.0)
+    planner.plan(0.0, [_demand(0, 3.0, 0.25)], joints)
+    weighed: list[tuple[str, bytes]] = []
+    real = best_pose.view_one
+
+    def counted(sensor: Any, q: Any, *args: Any, **kwargs: Any) -> Any:
+        weighed.append((sensor.camera_id, np.asarray(q).tobytes()))
+        return real(sensor, q, *args, **kwargs)
+
+    monkeypatch.setattr(planner_module, 'view_one', counted)
+    d0 = _demand(0, 3.0, 0.25 + 0.001)  # inside the box: kept, not replanned
+    plan = planner.plan(0.2, [d0], joints)
+    assert not plan.replanned
+    assert len(plan.assigned()) == 3
+    assert len(weighed) == len(set(weighed)), f'views weighed more than once: {weighed}'
+    poses = {c: plan.assignments[c].desired for c in plan.assigned()}
+    expected = best_pose.visibility_at_poses(
+        {s.camera_id: s for s in setup.sensors}, MODEL, poses, d0.target, setup.marker_radius
+    )
+    assert plan.fused_visibility == expected
+    # A new plan weighs its views again (the prediction may have moved).
+    weighed.clear()
+    planner.plan(0.3, [d0], joints)
+    assert weighed
 
 
 def test_a_manoeuvre_replans_inside_the_box() -> None:

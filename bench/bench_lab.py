@@ -13,7 +13,12 @@ file says 20 ms for all); ``activesurv hardware measure-delay`` against it (``de
 
 ``software_trigger_*``: the lab's dynamic cameras software-triggered (``--trigger software``:
 the imagers call each driver's Trigger service 1 ms ahead of the instant), Set A fast: its
-frames' |exposure - instant| median and max (goal: <= 2 ms median), demands ok, error.
+frames' |exposure - instant| median and max (goal: <= 2 ms median), demands ok, error; and the
+latency of the same run beside issue 35's bound for triggered cameras (``_latency_bound_ms``:
+the cameras' own delay, ``_camera_delay_ms``, the median of every frame's arrival at its imager
+after its exposure, plus the compute on the critical path, ``_compute_ms``; no wait for a frame,
+the exposure is the instant's): ``_latency_median_ms``, ``_latency_to_bound``, and
+``_latency_to_frames_bound`` (each demand against its own frames' arrival plus its compute).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ import yaml
 
 from activesurv_bringup.rig.lab import camera_controller, table_controller
 from activesurv_dispatch.sensors import load_setup
+from activesurv_evaluation.timing import camera_delays, critical_compute, frames_bound
 from activesurv_stages.bridge import BridgeWorker, LinkState
 from activesurv_stages.config import controller_from_dict
 from activesurv_stages.drivers import make_driver
@@ -218,7 +224,32 @@ def _software_trigger(tmp: Path) -> dict[str, object]:
         rows = _set_a_fast(hw, tmp / 'A_fast', 'nominal')
     offsets = [abs(v) for x in rows for v in x['frame_offsets'].values()]
     errors = [x['position_error'] for x in rows if x.get('position_error') is not None]
+    # Issue 35's bound for triggered cameras: the camera's own delay plus the compute (no wait
+    # for a frame: the exposure is the instant's), both measured in this run.
+    lat = [x['latency'] for x in rows if x.get('latency') is not None]
+    spent = [c for x in rows if (c := critical_compute(x.get('timing') or {})) is not None]
+    delays = camera_delays(rows)
+    bound = statistics.median(delays) + statistics.median(spent) if delays and spent else None
+    own = [
+        x['latency'] / b
+        for x in rows
+        if x.get('latency') is not None and (b := frames_bound(x)) is not None
+    ]
     return {
+        'software_trigger_latency_median_ms': (
+            round(1e3 * statistics.median(lat), 1) if lat else None
+        ),
+        'software_trigger_camera_delay_ms': (
+            round(1e3 * statistics.median(delays), 1) if delays else None
+        ),
+        'software_trigger_compute_ms': round(1e3 * statistics.median(spent), 2) if spent else None,
+        'software_trigger_latency_bound_ms': round(1e3 * bound, 1) if bound else None,
+        'software_trigger_latency_to_bound': (
+            round(statistics.median(lat) / bound, 2) if lat and bound else None
+        ),
+        'software_trigger_latency_to_frames_bound': (
+            round(statistics.median(own), 2) if own else None
+        ),
         'software_trigger_offset_median_ms': round(1e3 * float(np.median(offsets)), 3),
         'software_trigger_offset_max_ms': round(1e3 * max(offsets), 3),
         'software_trigger_setA_fast_ok': sum(x['status'] == 'ok' for x in rows),

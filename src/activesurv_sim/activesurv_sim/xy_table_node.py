@@ -12,11 +12,11 @@ Subscribes:
         records the target's exact pose at the demand instants), and, when it owns /clock, a
         clock tick at exactly that instant: every node's timers see the instant (a regular
         state and tick that close are skipped). With ``instant_ticks`` false the instant gets
-        its state only (the simulated cameras image on it; no process wakes for a tick then,
-        and a regular tick that close is kept). ``clock_period`` thins the regular ticks (not
-        the states): at most one per that much simulated time. On the request it also
-        publishes ``sim/planned_object_state``, the state its program will reach then (the
-        simulated cameras render ahead with it; see ``sim_camera``).
+        its state only, ``instant_state_delay`` (simulated s) later, past the cameras' imaging
+        (no process wakes for a tick then, and a regular tick that close is kept).
+        ``clock_period`` thins the regular ticks (not the states): at most one per that much
+        simulated time. On the request it also publishes ``sim/planned_object_state`` (the
+        simulated cameras render ahead with it): :mod:`activesurv_sim.ros.table_instants`.
 With ``hold_until_released`` it holds time at 0 (as it does for the readers it waits for) until
 the latched ``/sim/time_release`` (std_msgs/Empty) comes: the orchestrator starts it with the
 graph and releases it once every node is up.
@@ -28,22 +28,20 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.clock import Clock as RclpyClock
-from rclpy.clock import ClockType
 from rclpy.node import Node
-from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float64MultiArray
 
 from activesurv_common.pacing import PhaseLock
 from activesurv_common.ros import qos, topics
-from activesurv_common.ros.conversions import sec_to_time, time_to_sec
+from activesurv_common.ros.conversions import sec_to_time
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
+from activesurv_sim.ros.table_instants import TableInstants
 from activesurv_sim.stream import table_from_parameters
 from activesurv_sim.xy_table_params import PARAMS
 from activesurv_sim.xytable import XYTable, near_instant, start_shortfall
@@ -80,15 +78,22 @@ class XYTableNode(Node):
         )
         self._pub = self.create_publisher(ObjectStateMsg, topics.OBJECT_STATE, qos.STATE)
         self._last_clock = -1.0
-        self._triggers: dict[float, Timer | None] = {}
-        self._steady = RclpyClock(clock_type=ClockType.STEADY_TIME)
         planned = topics.PLANNED_OBJECT_STATE
-        self._planned_pub = self.create_publisher(ObjectStateMsg, planned, qos.EVENTS)
-        if bool(g('demand_states').value):
-            self.create_subscription(
-                CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS
-            )
         self._instant_ticks = bool(g('instant_ticks').value)
+        self.instants = TableInstants(
+            self,
+            self.sim_time,
+            (lambda: self._wall0) if self.publish_clock else None,
+            self.rtf,
+            lambda t: self._states(t, sec_to_time(t)),
+            self.create_publisher(ObjectStateMsg, planned, qos.EVENTS),
+            lambda t, states, tick: self._publish_at(t, states, tick),
+            self._instant_ticks,
+            float(g('instant_state_delay').value),
+        )
+        if bool(g('demand_states').value):
+            cb = self.instants.on_request
+            self.create_subscription(CaptureRequest, topics.CAPTURE_REQUEST, cb, qos.EVENTS)
         self._clock_period = float(g('clock_period').value)
         self._period = 1.0 / float(g('publish_rate').value)
         phase = self._phase = float(g('publish_phase').value)
@@ -144,12 +149,14 @@ class XYTableNode(Node):
         t = self.sim_time()
         if self._grid is not None and not self._grid.ready(t):
             return
-        near = near_instant(t, self._triggers, self._period)
+        near = near_instant(t, self.instants.fired, self._period)
         if not near or not self._instant_ticks:
             tick = t >= self._last_clock + self._clock_period - 1e-6  # every timer wakes on it
             self._publish_at(t, states=not near, tick=tick)
 
     def _publish_at(self, t: float, states: bool = True, tick: bool = True) -> None:
+        if states:
+            self.instants.flush()  # an instant's state waiting goes first: states keep order
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)
         for msg in self._states(t, stamp) if states else []:
             self._pub.publish(msg)
@@ -164,35 +171,13 @@ class XYTableNode(Node):
             for i, k, st in table_states(self.table, t)
         ]
 
-    def _on_request(self, msg: CaptureRequest) -> None:
-        t = time_to_sec(msg.demand_instant)
-        if t in self._triggers or not t > self.sim_time():
-            return  # already scheduled (or a request replayed after its instant)
-        for msg in self._states(t, sec_to_time(t)):
-            self._planned_pub.publish(msg)
-        if not self.publish_clock:
-            # On someone else's clock: a simulated-time timer fires at its first tick >= t.
-            delay = t - self.sim_time()
-            self._triggers[t] = self.create_timer(delay, lambda: self._trigger(t))
-            return
-        if self._wall0 is None:
-            return
-        delay = max((t / self.rtf) - (time.monotonic() - self._wall0), 0.0)
-        self._triggers[t] = self.create_timer(delay, lambda: self._trigger(t), clock=self._steady)
-
-    def _trigger(self, t: float) -> None:
-        timer = self._triggers.get(t)
-        if timer is not None:
-            timer.cancel()
-            self.destroy_timer(timer)
-        self._publish_at(t, tick=self._instant_ticks)
-        # Keep the fired instants a while (a request may come again), not for hours.
-        self._triggers = {k: v for k, v in self._triggers.items() if k > t - 60.0}
-        self._triggers[t] = None
+    def flush(self) -> None:
+        self.instants.flush()  # at stop: the instant's state still waiting
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node('xy_table', XYTableNode, args, errors=(StageError, SimError))
+    flush = XYTableNode.flush
+    return run_node('xy_table', XYTableNode, args, on_stop=flush, errors=(StageError, SimError))
 
 
 if __name__ == '__main__':

@@ -38,6 +38,13 @@ PARAMS = (
     Param('demand_states', True, 'publish a state (and clock tick) at each demand instant'),
     Param('instant_ticks', True, 'with demand_states: a /clock tick at each instant too'),
     Param(
+        'instant_state_delay',
+        0.0,
+        's (simulated) an instant state waits when it has no tick: past the imaging',
+        minimum=0.0,
+        maximum=1.0,
+    ),
+    Param(
         'clock_period',
         0.0,
         's: least simulated time between regular /clock ticks (0: one with every state)',

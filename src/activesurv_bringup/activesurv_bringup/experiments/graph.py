@@ -135,7 +135,21 @@ def graph_specs(
             replace(s, host=s.name.split('_')[0] if s.name.startswith('cam') else 'core')
             for s in specs
         ]
-    table: dict[str, Any] = {
+    table = _table_parameters(exp, rtf, preview_rate, truth, specs)
+    host = 'core' if split_hosts else ''
+    specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
+    return specs
+
+
+def _table_parameters(
+    exp: Experiment,
+    rtf: float,
+    preview_rate: float,
+    truth: dict[str, str],
+    specs: Sequence[NodeSpec],
+) -> dict[str, Any]:
+    """The simulated xy table's parameters in a graph run (``specs``: the other nodes)."""
+    return {
         **exp.table_config().to_parameters(),
         # /clock and object states at the overhead camera's rate and on its frames (half a
         # period off the instants' grid): every demand instant gets a tick and a state of its
@@ -150,6 +164,10 @@ def graph_specs(
         # fast: median latency 16.0 against 18.4 ms; docs/performance.md). Stamps between
         # ticks are read off the extrapolated clock (FineClock, the recorder's ClockEstimate).
         'instant_ticks': False,
+        # Nothing of the system reads the instant's state (the truth): it goes out once the
+        # cameras have imaged, not while (alternating runs, Set A fast: median latency 13.7
+        # against 15.3 ms; docs/performance.md). Before the grid's next state in any case.
+        'instant_state_delay': 0.025,
         # A /clock tick on every other state (each wakes every process); what keeps its rate
         # runs on the table's grid (``instants.periodic``; docs/node-graph.md).
         'clock_period': 2.0 / exp.overhead_rate,
@@ -158,9 +176,6 @@ def graph_specs(
         # The recorder and every simulated camera must hear the object from the start.
         'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
     }
-    host = 'core' if split_hosts else ''
-    specs.append(NodeSpec('xy_table', 'activesurv_sim.xy_table_node', parameters=table, host=host))
-    return specs
 
 
 def _intrinsics(files: dict[str, str], camera_id: str) -> dict[str, str]:

@@ -1,0 +1,98 @@
+"""The simulated xy table's demand instants: a state (and a tick) of its own at each one.
+
+On a capture request the table publishes ``sim/planned_object_state`` (what its program reaches
+at the instant: the simulated cameras render ahead with it) and sets a timer for the instant.
+There it publishes the object's state stamped exactly then: the truth the bag, the evaluation
+and the simulated cameras' check of what they rendered ahead hold against. With
+``instant_state_delay`` > 0 and no tick at the instant, that state goes out the delay
+(simulated seconds) later, past the cameras' imaging: no node of the system reads it, and on
+two cores its publication and its six readers took 1.5-2.5 ms of CPU from the three cameras
+imaging the instant (docs/performance.md). Its stamp is the instant's all the same; a state of
+a later time, and a stop, send it at once, so states keep their order.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.timer import Timer
+
+from activesurv_common.ros.conversions import time_to_sec
+from activesurv_common.ros.deferred import Deferred
+from activesurv_interfaces.msg import CaptureRequest
+from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
+
+
+class TableInstants:
+    """A table node's demand instants (see the module).
+
+    Args:
+        node: the table node (its timers).
+        sim_time: the node's simulated time now.
+        wall0: the steady time simulated 0 began at, None before it (own clock); None as a
+            whole when the node runs on someone else's /clock.
+        rtf: simulated seconds per wall second.
+        states: the object's state messages at a simulated time.
+        planned: the ``sim/planned_object_state`` publisher.
+        publish_at: publishes the states (and a tick) at a time: ``(t, states, tick)``.
+        tick: a /clock tick at each instant too (then the state goes with it, undeferred).
+        delay: simulated seconds the instant's state waits (0: none).
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        sim_time: Callable[[], float],
+        wall0: Callable[[], float | None] | None,
+        rtf: float,
+        states: Callable[[float], list[ObjectStateMsg]],
+        planned: Publisher,
+        publish_at: Callable[[float, bool, bool], None],
+        tick: bool,
+        delay: float,
+    ) -> None:
+        self._node, self._sim_time, self._wall0, self._rtf = node, sim_time, wall0, rtf
+        self._states, self._planned, self._publish_at = states, planned, publish_at
+        self._tick = tick
+        self.fired: dict[float, Timer | None] = {}  # instants scheduled (timer) or past (None)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._later = Deferred(node, 0.0 if tick else delay / rtf)
+
+    def on_request(self, msg: CaptureRequest) -> None:
+        t = time_to_sec(msg.demand_instant)
+        if t in self.fired or not t > self._sim_time():
+            return  # already scheduled (or a request replayed after its instant)
+        for state in self._states(t):
+            self._planned.publish(state)
+        if self._wall0 is None:
+            # On someone else's clock: a simulated-time timer fires at its first tick >= t.
+            delay = t - self._sim_time()
+            self.fired[t] = self._node.create_timer(delay, lambda: self._fire(t))
+            return
+        wall0 = self._wall0()
+        if wall0 is None:
+            return
+        delay = max((t / self._rtf) - (time.monotonic() - wall0), 0.0)
+        self.fired[t] = self._node.create_timer(delay, lambda: self._fire(t), clock=self._steady)
+
+    def flush(self) -> None:
+        """Send the instants' states still waiting, now (a later state goes out, or a stop)."""
+        if len(self._later):
+            self._later.flush()
+
+    def _fire(self, t: float) -> None:
+        timer = self.fired.get(t)
+        if timer is not None:
+            timer.cancel()
+            self._node.destroy_timer(timer)
+        if self._tick:
+            self._publish_at(t, True, True)
+        else:
+            self._later(lambda: self._publish_at(t, True, False))
+        # Keep the fired instants a while (a request may come again), not for hours.
+        self.fired = {k: v for k, v in self.fired.items() if k > t - 60.0}
+        self.fired[t] = None

@@ -1,0 +1,105 @@
+"""In-process node test: the simulated table's state of a demand instant waits
+``instant_state_delay`` past the instant (the cameras image meanwhile), keeps its order before
+the grid's next state, and goes out at a stop."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from rclpy.parameter import Parameter
+
+from activesurv_common.ros import qos, topics
+from activesurv_common.ros.conversions import sec_to_time
+from activesurv_sim.xy_table_node import XYTableNode
+
+pytestmark = pytest.mark.node  # in-process rclpy nodes
+
+
+def _table(delay: float, rate: float = 10.0) -> XYTableNode:
+    return XYTableNode(
+        parameter_overrides=[
+            Parameter('publish_rate', value=rate),
+            Parameter('publish_phase', value=0.5 / rate),  # states half a period off instants
+            Parameter('instant_ticks', value=False),
+            Parameter('instant_state_delay', value=delay),
+        ]
+    )
+
+
+def _stamp(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+
+
+@pytest.mark.parametrize('delay', [0.03, 0.2, 0.0])
+def test_an_instants_state_waits_its_delay_and_keeps_its_order(
+    rclpy_context: Any, spin_until: Callable[..., bool], delay: float
+) -> None:
+    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+
+    table = _table(delay)
+    peer = rclpy_context.create_node('table_instants_test_peer')
+    heard: list[tuple[float, float]] = []  # (stamp, simulated time heard)
+    try:
+        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+
+        def on_state(msg: ObjectState) -> None:
+            assert table._wall0 is not None
+            heard.append((_stamp(msg), table.sim_time()))
+
+        peer.create_subscription(ObjectState, topics.OBJECT_STATE, on_state, qos.STATE)
+        assert spin_until(
+            [table, peer],
+            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
+            timeout=20.0,
+        )
+        # An instant on the tenths: the grid's states are 50 ms either side of it.
+        t = math.ceil((table.sim_time() + 0.4) * 10.0) / 10.0
+        req.publish(CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1']))
+        assert spin_until(
+            [table, peer],
+            lambda: any(s > t + 0.04 for s, _ in heard),  # the grid's next (its tick's time)
+            timeout=10.0,
+        ), f'no state after {t:.2f} s: {heard}'
+        stamps = [s for s, _ in heard]
+        assert stamps == sorted(stamps), 'states out of order'
+        at = [h for s, h in heard if abs(s - t) < 1e-6]
+        assert len(at) == 1, f'the instant {t:.2f} s has no state of its own: {stamps}'
+        if delay > 0.0:
+            # Never before its delay (and with a long one, sent as the grid's next state goes).
+            assert at[0] >= t + min(delay, 0.05) - 0.005, f'state of {t} heard at {at[0]:.4f}'
+    finally:
+        table.destroy_node()
+        peer.destroy_node()
+
+
+def test_a_stop_sends_the_instants_state_still_waiting(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+
+    table = _table(0.3, rate=1.0)  # the grid's states at .5 s: far from the instant
+    peer = rclpy_context.create_node('table_instants_stop_peer')
+    heard: list[float] = []
+    try:
+        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+        peer.create_subscription(
+            ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
+        )
+        assert spin_until(
+            [table, peer],
+            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
+            timeout=20.0,
+        )
+        t = float(math.ceil(table.sim_time() + 0.7))
+        req.publish(CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1']))
+        assert spin_until([table, peer], lambda: table.sim_time() > t + 0.05, timeout=10.0)
+        assert not any(abs(s - t) < 1e-6 for s in heard), 'sent before its delay'
+        assert len(table.instants._later) == 1  # fired, waiting
+        table.flush()  # the console script's on_stop, the container's flush pass
+        assert spin_until([table, peer], lambda: any(abs(s - t) < 1e-6 for s in heard), 5.0)
+    finally:
+        table.destroy_node()
+        peer.destroy_node()

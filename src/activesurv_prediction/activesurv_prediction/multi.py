@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import linear_sum_assignment
 
 from activesurv_prediction.demands import (
     DemandBook,
@@ -154,6 +153,10 @@ class MultiTracker:
                     d2 = float(d @ S_inv @ d)
                     if d2 <= self.gate or (young and float(np.hypot(*d)) <= self.near):
                         cost[i, j] = min(d2, self.gate)
+            # Imported here: scipy.optimize is half a second of every predictor's start, and
+            # only several objects at once (objects_at_once > 1) associate fixes with tracks.
+            from scipy.optimize import linear_sum_assignment
+
             rows, cols = linear_sum_assignment(cost)
             for i, j in zip(rows, cols, strict=True):
                 if cost[i, j] >= _FAR:

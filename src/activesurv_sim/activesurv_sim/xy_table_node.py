@@ -152,11 +152,11 @@ class XYTableNode(Node):
         near = near_instant(t, self.instants.fired, self._period)
         if not near or not self._instant_ticks:
             tick = t >= self._last_clock + self._clock_period - 1e-6  # every timer wakes on it
+            if not near:
+                self.instants.flush()  # an instant's state still waiting goes first
             self._publish_at(t, states=not near, tick=tick)
 
     def _publish_at(self, t: float, states: bool = True, tick: bool = True) -> None:
-        if states:
-            self.instants.flush()  # an instant's state waiting goes first: states keep order
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)
         for msg in self._states(t, stamp) if states else []:
             self._pub.publish(msg)

@@ -103,3 +103,34 @@ def test_a_stop_sends_the_instants_state_still_waiting(
     finally:
         table.destroy_node()
         peer.destroy_node()
+
+
+def test_two_instants_close_together_keep_their_order(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """Two objects' instants 10 ms apart, each state waiting 30 ms: the earlier goes first."""
+    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+
+    table = _table(0.03)
+    peer = rclpy_context.create_node('table_instants_pair_peer')
+    heard: list[float] = []
+    try:
+        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+        peer.create_subscription(
+            ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
+        )
+        assert spin_until(
+            [table, peer],
+            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
+            timeout=20.0,
+        )
+        t = math.ceil((table.sim_time() + 0.4) * 10.0) / 10.0
+        for when in (t, t + 0.01):
+            req.publish(CaptureRequest(demand_instant=sec_to_time(when), camera_ids=['cam1']))
+        assert spin_until([table, peer], lambda: any(s > t + 0.04 for s in heard), 10.0)
+        mine = [s for s in heard if t - 1e-6 < s < t + 0.02]
+        assert len(mine) == 2, f'states of {t:.2f} and {t + 0.01:.2f} s: {heard}'
+        assert heard == sorted(heard), f'states out of order: {heard}'
+    finally:
+        table.destroy_node()
+        peer.destroy_node()

@@ -48,6 +48,23 @@ from activesurv_recording.errors import BagError
 from activesurv_recording.run_record import ExperimentRun, RunRecord, read_run_record
 
 TOPICS = DEMAND_TOPICS | {'/diagnostics'}  # an experiment's: its stage faults too
+TRUTH_TOLERANCE = 1e-3
+"""s past the newest truth sample an instant may lie and still take it (stamps' rounding)."""
+
+
+def demand_truth(
+    truth: TimeSeries, t: float, ended: bool, heard_of: bool
+) -> np.ndarray[Any, np.dtype[np.float64]] | None:
+    """The true state (side marker, normal) a demand at ``t`` is evaluated against: the table's
+    own state of the instant, or the states around it interpolated. NaN where there is none
+    (a gap in the table's reports; an instant after its last state, as when a stop ended the
+    table first: its last state held would be a stale truth, 1 mm off for an object at 20 mm/s
+    50 ms on), so the demand is kept without errors. None when the run ended (``ended``)
+    before the demand and nothing of it was heard (``heard_of``): the demands so far."""
+    s = truth.at(t, hold=TRUTH_TOLERANCE)
+    if s is not None:
+        return s
+    return None if ended and not heard_of else np.full(6, np.nan)
 
 
 def experiment_facts(record: RunRecord) -> dict[str, Any]:
@@ -155,11 +172,11 @@ def _demand_records(
     last_truth = heard.truth.latest_time
     for j, t_run in enumerate(times):
         tj = heard.origin + t_run
-        s = heard.truth.at(tj, hold=0.5) if not truthless else np.full(6, np.nan)
-        if s is None and (partial or (last_truth is not None and tj > last_truth + 0.5)):
+        ended = partial or (last_truth is not None and tj > last_truth + 0.5)
+        heard_of = j in heard.requests or j in heard.estimates
+        s = demand_truth(heard.truth, tj, ended, heard_of) if not truthless else np.full(6, np.nan)
+        if s is None:
             break  # the run was stopped (a signal) before this instant: the demands so far
-        if s is None:  # a gap in the truth (a loaded machine's table reports): no errors
-            s = np.full(6, np.nan)
         observed = heard.observations.get(j, [])
         est = heard.estimates.get(j)
         rec = demand_record(

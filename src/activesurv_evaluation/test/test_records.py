@@ -49,3 +49,24 @@ def test_a_demand_without_truth_near_it_is_kept_with_null_errors() -> None:
     s = summary(json.loads(text))
     assert s['estimates'] == 2.0
     assert abs(s['median_position_error'] - 1e-4) < 1e-9
+
+
+def test_a_demand_after_the_last_truth_is_kept_without_a_stale_truth() -> None:
+    """A stop that ends the table first leaves a last demand after its last state: its truth
+    is unknown (not that state held, 1 mm off at 20 mm/s 50 ms on), the demand is kept when
+    anything of it was heard, and a demand the run never reached ends the records."""
+    from activesurv_common.timeseries import TimeSeries
+    from activesurv_evaluation.runs import demand_truth
+
+    truth = TimeSeries(6)
+    for t in (7.35, 7.45):  # the grid's states; the instant 7.5 got none
+        truth.add(t, np.array([0.02 * t, 0.0, 0.08, 0.0, -1.0, 0.0]))
+    between = demand_truth(truth, 7.4, ended=False, heard_of=True)
+    assert between is not None and abs(between[0] - 0.02 * 7.4) < 1e-12  # interpolated
+    exact = demand_truth(truth, 7.45, ended=True, heard_of=True)
+    assert exact is not None and exact[0] == 0.02 * 7.45
+    after = demand_truth(truth, 7.5, ended=True, heard_of=True)
+    assert after is not None and np.all(np.isnan(after)), f'a stale truth: {after}'
+    assert demand_truth(truth, 7.5, ended=True, heard_of=False) is None  # never reached
+    gap = demand_truth(truth, 7.5, ended=False, heard_of=False)
+    assert gap is not None and np.all(np.isnan(gap))

@@ -17,6 +17,7 @@ from rosbags.rosbag2 import Reader
 from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.lockstep import run_lockstep
 from activesurv_evaluation.results import results_document, summary
+from activesurv_recording.bagio import read_bag
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
@@ -93,6 +94,9 @@ def test_the_latency_budget_is_on_one_clock(graph_run: Path) -> None:
         assert t['heard']['estimate'] >= t['estimate'], t
         # fusion's own processing is on the critical path, and within the estimate's wait
         assert 0.0 < t['fusion_compute'] < t['estimate'] - max(t['observations'].values()), t
+    # Simulated time started once fusion heard the clock (a late match stamped an estimate 0).
+    ready = {m.msg.data for m in read_bag(graph_run / 'bag', {'/activesurv/ready'})}
+    assert '/fusion' in ready, ready
 
 
 def test_bag_is_a_standard_mcap_rosbag2(graph_run: Path) -> None:

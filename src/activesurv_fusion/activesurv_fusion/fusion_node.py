@@ -29,11 +29,11 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from activesurv_common.ros import diagnostics, qos, topics
+from activesurv_common.ros import diagnostics, qos, ready, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.node import run_node
-from activesurv_common.ros.parameters import Param, declare
+from activesurv_common.ros.parameters import declare
 from activesurv_fusion.collector import DemandBatch, DemandCollector, resolve
 from activesurv_fusion.conversions import (
     observation_to_answer,
@@ -42,44 +42,9 @@ from activesurv_fusion.conversions import (
     result_to_pose,
 )
 from activesurv_fusion.errors import FusionError
+from activesurv_fusion.fusion_params import PARAMS
 from activesurv_fusion.journal import append_journal, read_journal
 from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
-
-
-def _not_empty(v: Any) -> str | None:
-    return None if str(v) else 'frame_id must not be empty'
-
-
-PARAMS = (
-    Param(
-        'collect_timeout',
-        2.0,
-        's after a demand instant to wait for missing cameras',
-        above=0.0,
-        maximum=600.0,
-    ),
-    Param(
-        'z_sigma',
-        3.0,
-        'abstract-sensor half-width in standard deviations (3: 99.74 %)',
-        above=0.0,
-        maximum=10.0,
-    ),
-    Param(
-        'max_faulty',
-        -1,
-        'faulty cameras tolerated (k_f); -1: the largest k_f < k/2',
-        minimum=-1,
-        maximum=64,
-    ),
-    Param('frame_id', 'world', 'frame of the published poses', check=_not_empty),
-    Param(
-        'journal',
-        '',
-        'file of answered demand indices (kept across restarts); empty: none',
-        read_only=True,
-    ),
-)
 
 
 class FusionNode(Node):
@@ -116,6 +81,9 @@ class FusionNode(Node):
         self.create_subscription(MarkerObservation, observations, self._on_observation, obs_qos)
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
+        if bool(self.get_parameter('announce_ready').value):  # simulated time waits for it
+            inputs = (topics.CLOCK_ORIGIN, topics.CAPTURE_REQUEST, observations)
+            ready.announce_when_matched(self, inputs)
 
     def _apply(self, params: list[Parameter]) -> SetParametersResult:
         """A changed collect_timeout applies to the open demands too (checked already)."""

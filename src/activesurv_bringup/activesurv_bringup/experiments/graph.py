@@ -293,6 +293,10 @@ def core_specs(
                 **clock,
                 **exp.fusion_config().to_parameters(),
                 'journal': str(logs / 'fusion.journal'),
+                # Simulated time starts once it hears the clock, requests and observations: on
+                # a loaded host its participant once matched them 2.5 s into the run, and the
+                # first estimate was stamped at time 0.
+                'announce_ready': True,
             },
         ),
     ]
@@ -644,7 +648,7 @@ def _callbacks_into(out_dir: Path, timed: bool) -> Iterator[None]:
 
 READY_MODULES = ('activesurv_prediction.predictor_node',)
 """Nodes that say when their inputs are matched (:mod:`activesurv_common.ros.ready`); and
-every node given ``wait_for_readers``."""
+every node given ``wait_for_readers`` or ``announce_ready`` (fusion)."""
 READY_TIMEOUT = 15.0
 """s (wall) simulated time waits for them before it starts anyway, with a warning."""
 
@@ -662,7 +666,9 @@ def _wait_until_matched(
         m.name
         for s in specs
         for m in (s.members or (s,))
-        if m.module in READY_MODULES or int(m.parameters.get('wait_for_readers', 0)) > 0
+        if m.module in READY_MODULES
+        or int(m.parameters.get('wait_for_readers', 0)) > 0
+        or bool(m.parameters.get('announce_ready', False))
     }
     started = time.monotonic()
     while not expected <= monitor.ready:

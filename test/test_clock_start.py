@@ -76,22 +76,25 @@ class _Monitor:
 def test_time_waits_for_the_fixes_matched_at_both_ends(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The locator (its writer has its two readers) and the predictor (its reader has its
-    publisher) must both say so before simulated time starts; a run once lost demand 0 to
-    fixes published before the match."""
+    """The locator (its writer has its two readers), the predictor (its reader has its
+    publisher) and fusion (it hears the clock, requests and observations) must each say so
+    before simulated time starts; a run once lost demand 0 to fixes published before the
+    match, and another stamped its first estimate at time 0."""
     from activesurv_bringup.experiments import graph
 
     exp = load_experiment('A', 'fast', 1)
     grouped = group_processes(graph_specs(exp, tmp_path / 'bag', 1.0)[:-1])
     locator = [m for s in grouped for m in s.members if m.name == 'overhead_locator']
     assert locator[0].parameters['wait_for_readers'] == 2
+    fusion = [m for s in grouped for m in (s.members or (s,)) if m.name == 'fusion']
+    assert fusion[0].parameters['announce_ready'] is True
     said: list[str] = []
-    both = {'overhead_locator', 'predictor'}
+    both = {'overhead_locator', 'predictor', 'fusion'}
     monitor = _Monitor({'predictor'}, 3)
     monkeypatch.setattr(graph, 'READY_TIMEOUT', 0.3)
     graph._wait_until_matched(_Graph(), monitor, grouped, said.append)  # type: ignore[arg-type]
     assert said, 'no warning'
-    assert said[0].startswith('warning: overhead_locator: inputs not matched'), said
+    assert said[0].startswith('warning: fusion, overhead_locator: inputs not matched'), said
     said.clear()
     monitor = _Monitor(both, 3)
     graph._wait_until_matched(_Graph(), monitor, grouped, said.append)  # type: ignore[arg-type]

@@ -62,11 +62,15 @@ def test_a_demand_after_the_last_truth_is_kept_without_a_stale_truth() -> None:
     for t in (7.35, 7.45):  # the grid's states; the instant 7.5 got none
         truth.add(t, np.array([0.02 * t, 0.0, 0.08, 0.0, -1.0, 0.0]))
     between = demand_truth(truth, 7.4, ended=False, heard_of=True)
-    assert between is not None and abs(between[0] - 0.02 * 7.4) < 1e-12  # interpolated
+    assert between is not None
+    assert abs(between[0] - 0.02 * 7.4) < 1e-12  # interpolated
     exact = demand_truth(truth, 7.45, ended=True, heard_of=True)
-    assert exact is not None and exact[0] == 0.02 * 7.45
+    assert exact is not None
+    assert exact[0] == 0.02 * 7.45
     after = demand_truth(truth, 7.5, ended=True, heard_of=True)
-    assert after is not None and np.all(np.isnan(after)), f'a stale truth: {after}'
+    assert after is not None
+    assert np.all(np.isnan(after)), f'a stale truth: {after}'
     assert demand_truth(truth, 7.5, ended=True, heard_of=False) is None  # never reached
     gap = demand_truth(truth, 7.5, ended=False, heard_of=False)
-    assert gap is not None and np.all(np.isnan(gap))
+    assert gap is not None
+    assert np.all(np.isnan(gap))

@@ -33,31 +33,43 @@ def _stamp(msg: Any) -> float:
     return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
 
 
+def _requester(
+    table: XYTableNode, peer: Any, spin_until: Callable[..., bool]
+) -> Callable[[float], None]:
+    """Once the table's time runs and it hears capture requests: ask for a demand instant."""
+    from activesurv_interfaces.msg import CaptureRequest
+
+    req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
+    assert spin_until(
+        [table, peer],
+        lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
+        timeout=20.0,
+    )
+    return lambda t: req.publish(
+        CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1'])
+    )
+
+
 @pytest.mark.parametrize('delay', [0.03, 0.2, 0.0])
 def test_an_instants_state_waits_its_delay_and_keeps_its_order(
     rclpy_context: Any, spin_until: Callable[..., bool], delay: float
 ) -> None:
-    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+    from activesurv_interfaces.msg import ObjectState
 
     table = _table(delay)
     peer = rclpy_context.create_node('table_instants_test_peer')
     heard: list[tuple[float, float]] = []  # (stamp, simulated time heard)
     try:
-        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
 
         def on_state(msg: ObjectState) -> None:
             assert table._wall0 is not None
             heard.append((_stamp(msg), table.sim_time()))
 
         peer.create_subscription(ObjectState, topics.OBJECT_STATE, on_state, qos.STATE)
-        assert spin_until(
-            [table, peer],
-            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
-            timeout=20.0,
-        )
+        request = _requester(table, peer, spin_until)
         # An instant on the tenths: the grid's states are 50 ms either side of it.
         t = math.ceil((table.sim_time() + 0.4) * 10.0) / 10.0
-        req.publish(CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1']))
+        request(t)
         assert spin_until(
             [table, peer],
             lambda: any(s > t + 0.04 for s, _ in heard),  # the grid's next (its tick's time)
@@ -78,23 +90,18 @@ def test_an_instants_state_waits_its_delay_and_keeps_its_order(
 def test_a_stop_sends_the_instants_state_still_waiting(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
-    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+    from activesurv_interfaces.msg import ObjectState
 
     table = _table(0.3, rate=1.0)  # the grid's states at .5 s: far from the instant
     peer = rclpy_context.create_node('table_instants_stop_peer')
     heard: list[float] = []
     try:
-        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
         peer.create_subscription(
             ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
         )
-        assert spin_until(
-            [table, peer],
-            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
-            timeout=20.0,
-        )
+        request = _requester(table, peer, spin_until)
         t = float(math.ceil(table.sim_time() + 0.7))
-        req.publish(CaptureRequest(demand_instant=sec_to_time(t), camera_ids=['cam1']))
+        request(t)
         assert spin_until([table, peer], lambda: table.sim_time() > t + 0.05, timeout=10.0)
         assert not any(abs(s - t) < 1e-6 for s in heard), 'sent before its delay'
         assert len(table.instants._later) == 1  # fired, waiting
@@ -109,24 +116,19 @@ def test_two_instants_close_together_keep_their_order(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
     """Two objects' instants 10 ms apart, each state waiting 30 ms: the earlier goes first."""
-    from activesurv_interfaces.msg import CaptureRequest, ObjectState
+    from activesurv_interfaces.msg import ObjectState
 
     table = _table(0.03)
     peer = rclpy_context.create_node('table_instants_pair_peer')
     heard: list[float] = []
     try:
-        req = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS)
         peer.create_subscription(
             ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
         )
-        assert spin_until(
-            [table, peer],
-            lambda: table._wall0 is not None and req.get_subscription_count() >= 1,
-            timeout=20.0,
-        )
+        request = _requester(table, peer, spin_until)
         t = math.ceil((table.sim_time() + 0.4) * 10.0) / 10.0
         for when in (t, t + 0.01):
-            req.publish(CaptureRequest(demand_instant=sec_to_time(when), camera_ids=['cam1']))
+            request(when)
         assert spin_until([table, peer], lambda: any(s > t + 0.04 for s in heard), 10.0)
         mine = [s for s in heard if t - 1e-6 < s < t + 0.02]
         assert len(mine) == 2, f'states of {t:.2f} and {t + 0.01:.2f} s: {heard}'

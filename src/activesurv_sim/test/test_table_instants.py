@@ -33,6 +33,17 @@ def _stamp(msg: Any) -> float:
     return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
 
 
+def _stamps_heard(peer: Any) -> list[float]:
+    """The stamps of the object states ``peer`` hears, in the order it hears them."""
+    from activesurv_interfaces.msg import ObjectState
+
+    heard: list[float] = []
+    peer.create_subscription(
+        ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
+    )
+    return heard
+
+
 def _requester(
     table: XYTableNode, peer: Any, spin_until: Callable[..., bool]
 ) -> Callable[[float], None]:
@@ -90,15 +101,10 @@ def test_an_instants_state_waits_its_delay_and_keeps_its_order(
 def test_a_stop_sends_the_instants_state_still_waiting(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
-    from activesurv_interfaces.msg import ObjectState
-
     table = _table(0.3, rate=1.0)  # the grid's states at .5 s: far from the instant
     peer = rclpy_context.create_node('table_instants_stop_peer')
-    heard: list[float] = []
     try:
-        peer.create_subscription(
-            ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
-        )
+        heard = _stamps_heard(peer)
         request = _requester(table, peer, spin_until)
         t = float(math.ceil(table.sim_time() + 0.7))
         request(t)
@@ -116,15 +122,10 @@ def test_two_instants_close_together_keep_their_order(
     rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
     """Two objects' instants 10 ms apart, each state waiting 30 ms: the earlier goes first."""
-    from activesurv_interfaces.msg import ObjectState
-
     table = _table(0.03)
     peer = rclpy_context.create_node('table_instants_pair_peer')
-    heard: list[float] = []
     try:
-        peer.create_subscription(
-            ObjectState, topics.OBJECT_STATE, lambda m: heard.append(_stamp(m)), qos.STATE
-        )
+        heard = _stamps_heard(peer)
         request = _requester(table, peer, spin_until)
         t = math.ceil((table.sim_time() + 0.4) * 10.0) / 10.0
         for when in (t, t + 0.01):

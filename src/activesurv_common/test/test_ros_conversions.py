@@ -15,6 +15,7 @@ from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
+    CameraInfoStamper,
     camera_info_from_model,
     gray_to_image,
     image_to_gray,
@@ -35,6 +36,20 @@ def test_camera_info_round_trip() -> None:
     info.distortion_model = 'equidistant'
     with pytest.raises(CalibrationError, match='equidistant'):
         model_from_camera_info(info, 'cam3')
+
+
+def test_a_stamper_gives_each_frame_its_own_header_on_the_same_intrinsics() -> None:
+    from rclpy.serialization import serialize_message
+
+    cam = CameraModel(640, 480, dynamic_camera().K, [-0.1, 0.01, 0.0, 0.0, 0.0], 'cam3')
+    stamper = CameraInfoStamper(cam, 'cam3_optical')
+    first, second = stamper(Time(sec=3, nanosec=5)), stamper(Time(sec=4))
+    assert (first.header.stamp.sec, first.header.stamp.nanosec) == (3, 5)  # not the second's
+    assert second.header.stamp.sec == 4
+    assert second.header.frame_id == 'cam3_optical'
+    for stamp, msg in ((Time(sec=3, nanosec=5), first), (Time(sec=4), second)):
+        built = camera_info_from_model(cam, 'cam3_optical', stamp)
+        assert serialize_message(msg) == serialize_message(built)
 
 
 def test_image_encodings_and_bad_buffers() -> None:

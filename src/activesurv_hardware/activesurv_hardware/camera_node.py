@@ -33,7 +33,7 @@ from std_srvs.srv import Trigger
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.ros import diagnostics, qos, topics
-from activesurv_common.ros.conversions import camera_info_from_model, gray_to_image
+from activesurv_common.ros.conversions import CameraInfoStamper, gray_to_image
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_hardware.errors import CameraSourceError, HardwareError
@@ -88,6 +88,7 @@ class CameraNode(Node):
         self.model: CameraModel | None = None
         if v['camera_info_file']:
             self.model = CameraModel.load(str(v['camera_info_file']))
+        self.info = CameraInfoStamper(self.model, self.frame_id) if self.model else None
         self.last_error = ''
         self.triggered = v['trigger'] == 'software'
         self.exposure_delay = float(v['exposure_delay'])
@@ -161,8 +162,8 @@ class CameraNode(Node):
             msg = gray_to_image(frame.reshape(frame.shape[0], -1), self.frame_id, stamp)
             msg.width, msg.encoding, msg.step = frame.shape[1], 'bgr8', 3 * frame.shape[1]
         self._image_pub.publish(msg)
-        if self.model is not None:
-            self._info_pub.publish(camera_info_from_model(self.model, self.frame_id, stamp))
+        if self.info is not None:
+            self._info_pub.publish(self.info(stamp))
 
     def _publish_diagnostics(self) -> None:
         ok = self.source.opened

@@ -29,7 +29,7 @@ from activesurv_common.errors import CommonError
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
-    camera_info_from_model,
+    CameraInfoStamper,
     declare_mount_parameters,
     gray_to_image,
     joint_vector,
@@ -74,8 +74,8 @@ class LabCameraNode(Node):
         self.sim = simulated_camera({**params, 'payload': 'object'}, mount)
         self.boards = simulated_camera({**params, 'payload': 'board'}, mount)
         self.sim.warm_up()
-        self.info_model = published_model(params, self.sim)
         self.frame_id = f'{self.camera_id}_optical_frame'
+        self.info = CameraInfoStamper(published_model(params, self.sim), self.frame_id)
         rate = float(v['frame_rate'])
         if not rate > 0.0:
             raise SimError('a lab camera free-runs: frame_rate must be > 0 Hz')
@@ -167,7 +167,7 @@ class LabCameraNode(Node):
         noise = self.jitter * float(self.rng.standard_normal())
         stamp = sec_to_time(t + self.delay + self.clock_offset + noise)
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
-        self._info_pub.publish(camera_info_from_model(self.info_model, self.frame_id, stamp))
+        self._info_pub.publish(self.info(stamp))
         self.frames += 1
 
     def _say_rate(self) -> None:

@@ -118,6 +118,18 @@ def object_scene(
     )
 
 
+RELEASED_KEPT = 64
+"""Frames released ahead whose table state is still to be checked (instants whose state never
+came are dropped beyond it)."""
+
+
+def _same(a: NDArray[np.float64], b: NDArray[np.float64], atol: float = 1e-6) -> bool:
+    """``np.allclose(a, b, rtol=0, atol=atol)`` for the few joints of a stage, in plain
+    Python: it runs at a demand instant, where numpy's per-call overhead was most of it."""
+    x, y = a.tolist(), b.tolist()
+    return len(x) == len(y) and all(abs(u - v) <= atol for u, v in zip(x, y, strict=True))
+
+
 class SimulatedCamera:
     """Renders frames of the object for one camera on its (possibly moving) mount."""
 
@@ -254,6 +266,11 @@ class SimulatedCamera:
         self._ahead[t] = (self.render_state(state, q_used, rates), state, q_used)
         return True
 
+    def ahead_frame(self, t: float) -> NDArray[np.uint8] | None:
+        """The frame of ``t`` rendered ahead and not yet released, or None."""
+        ahead = self._ahead.get(t)
+        return None if ahead is None else ahead[0]
+
     def release(self, t: float) -> NDArray[np.uint8] | None:
         """The frame of ``t`` rendered ahead, taken at the instant on the camera's own trigger,
         or None (it then waits for the states of ``t``: :meth:`frame_at`).
@@ -269,13 +286,14 @@ class SimulatedCamera:
         frame, state, q = ahead
         if self.joint_names:
             now = self.joints.at(t) if self.joints.has(t) else None
-            if now is None or not np.allclose(now, q, rtol=0.0, atol=1e-6):
+            if now is None or not _same(now, q):
                 return None
         del self._ahead[t]
         self._planned.pop(t, None)
         self._released[t] = state
-        for old in sorted(self._released)[:-64]:  # instants whose table state never came
-            del self._released[old]
+        if len(self._released) > RELEASED_KEPT:  # instants whose table state never came
+            for old in sorted(self._released)[:-RELEASED_KEPT]:
+                del self._released[old]
         return frame
 
     def released_differs(self, t: float) -> bool:

@@ -29,7 +29,6 @@ from activesurv_common.pacing import Pacer, PhaseLock
 from activesurv_common.ros import local_topics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
-    camera_info_from_model,
     declare_mount_parameters,
     gray_to_image,
     joint_vector,
@@ -45,6 +44,7 @@ from activesurv_interfaces.msg import CaptureRequest, ObjectState
 from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.ros.ahead import AheadFrames
+from activesurv_sim.ros.frame_messages import FrameMessages
 from activesurv_sim.sim_camera_params import PARAMS
 from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
 
@@ -62,8 +62,9 @@ class SimCameraNode(Node):
             mount_from_parameters(self.camera_id, p),
         )
         self.sim.warm_up()
-        self.info_model = published_model({q.name: g(q.name).value for q in PARAMS}, self.sim)
         self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
+        model = published_model({q.name: g(q.name).value for q in PARAMS}, self.sim)
+        self.messages = FrameMessages(model, self.frame_id)
         # Its imager in the same container images a frame before the frame goes over DDS.
         image = topics.image(self.camera_id)
         self._image_pub = local_topics.publisher(self, Image, image, qos.SENSOR_RELIABLE)
@@ -86,7 +87,7 @@ class SimCameraNode(Node):
         if bool(g('render_ahead').value):
             send, own = partial(self._send, ahead=True), bool(g('own_trigger').value)
             args = (self, self.sim, self.camera_id, self._pending, send, own, self._delay)
-            self._ahead = AheadFrames(*args)
+            self._ahead = AheadFrames(*args, prepare=self.messages.prepare)
         # States arriving trigger the frames waiting for them; the timer only ends the wait.
         self.create_timer(0.05, self._on_tick)
         rate, preview = float(g('frame_rate').value), float(g('preview_rate').value)
@@ -161,8 +162,7 @@ class SimCameraNode(Node):
             return
         # The intrinsics first: a consumer in the container then has them for the frame, and
         # its imager images the frame before either goes over DDS.
-        info = camera_info_from_model(self.info_model, self.frame_id, stamp)
-        image = gray_to_image(gray, self.frame_id, stamp)
+        info, image = self.messages(t, gray)  # built as the frame was rendered ahead
         pubs = (self._info_pub, info), (self._image_pub, image)
         local_topics.publish_together(*pubs, later=self.later if ahead else None)
         self.frames_published += 1

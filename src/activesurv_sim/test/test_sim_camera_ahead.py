@@ -80,3 +80,40 @@ def test_a_static_camera_needs_no_stage_state() -> None:
     sim.plan(T, STATE)
     assert sim.render_ahead(T)
     assert sim.release(T) is not None
+
+
+def test_a_frame_rendered_ahead_goes_out_in_the_messages_built_with_it() -> None:
+    from rclpy.serialization import serialize_message
+
+    from activesurv_common.ros.conversions import (
+        camera_info_from_model,
+        gray_to_image,
+        sec_to_time,
+    )
+    from activesurv_sim.ros.frame_messages import FrameMessages
+
+    sim = _camera()
+    _planned(sim)
+    ahead = sim.ahead_frame(T)
+    assert ahead is not None
+    messages = FrameMessages(sim.camera, 'cam1_optical_frame')
+    messages.prepare(T, ahead)
+    sim.joints.add(T, [0.0])
+    frame = sim.release(T)
+    assert frame is ahead
+    assert sim.ahead_frame(T) is None
+    info, image = messages(T, frame)
+    assert messages.prepared == 1  # the ones built ahead
+    stamp = sec_to_time(T)
+    assert serialize_message(image) == serialize_message(
+        gray_to_image(frame, 'cam1_optical_frame', stamp)
+    )
+    assert serialize_message(info) == serialize_message(
+        camera_info_from_model(sim.camera, 'cam1_optical_frame', stamp)
+    )
+    # Other pixels for the same instant (a frozen camera's): built now, from those pixels.
+    messages.prepare(T, ahead)
+    frozen = np.zeros_like(ahead)
+    _, other = messages(T, frozen)
+    assert messages.prepared == 1
+    assert bytes(other.data) == frozen.tobytes()

@@ -1,13 +1,15 @@
 """Conversions shared by every node: stamps, camera info, images, states, poses, mounts.
 
 Each function turns a message (or node parameters) into a core value or back; none keeps
-state. The package-specific ones (plans, observations, estimates) live in each package's own
+state (:class:`CameraInfoStamper` keeps one camera's message, to stamp copies of it). The
+package-specific ones (plans, observations, estimates) live in each package's own
 ``conversions.py``.
 """
 
 from __future__ import annotations
 
 import array
+import copy
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -17,6 +19,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, TransformStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Header
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.errors import CalibrationError
@@ -53,6 +56,24 @@ def camera_info_from_model(model: CameraModel, frame_id: str, stamp: Time) -> Ca
     P[:, :3] = model.K
     msg.p = [float(v) for v in P.reshape(-1)]
     return msg
+
+
+class CameraInfoStamper:
+    """A camera's ``CameraInfo`` built once; each frame gets a copy with its own header.
+
+    A frame's intrinsics go out beside it at a demand instant, where building the message anew
+    (its four matrices, field by field) took 0.2 ms of CPU per camera (docs/performance.md).
+    The copies share the template's arrays: like every published message, read, never changed.
+    """
+
+    def __init__(self, model: CameraModel, frame_id: str) -> None:
+        self.model = model
+        self._template = camera_info_from_model(model, frame_id, Time())
+
+    def __call__(self, stamp: Time) -> CameraInfo:
+        msg = copy.copy(self._template)
+        msg.header = Header(stamp=stamp, frame_id=self._template.header.frame_id)
+        return msg
 
 
 def model_from_camera_info(msg: CameraInfo, name: str) -> CameraModel:

@@ -33,7 +33,8 @@ Send = Callable[[float, NDArray[np.uint8]], None]
 
 class AheadFrames:
     """The planned truth of ``pending`` instants taken, their frames rendered ahead and (with
-    ``own_trigger``) sent at ``instant + delay()`` through ``send(t, frame)``."""
+    ``own_trigger``) sent at ``instant + delay()`` through ``send(t, frame)``; ``prepare(t,
+    frame)``, if given, is handed each frame as it is rendered (its messages built ahead)."""
 
     def __init__(
         self,
@@ -44,9 +45,10 @@ class AheadFrames:
         send: Send,
         own_trigger: bool,
         delay: Callable[[], float],
+        prepare: Callable[[float, NDArray[np.uint8]], None] | None = None,
     ) -> None:
         self._node, self._sim, self._pending, self._send = node, sim, pending, send
-        self._delay = delay
+        self._delay, self._prepare = delay, prepare
         self._trigger = InstantTimers(node) if own_trigger else None
         node.create_subscription(
             ObjectState, topics.PLANNED_OBJECT_STATE, self._on_planned_object, qos.EVENTS
@@ -77,6 +79,9 @@ class AheadFrames:
         except (SimError, CommonError) as exc:
             self._node.get_logger().warning(f'no frame ahead for t={t:.3f}: {exc}')
             return
+        frame = self._sim.ahead_frame(t) if ready else None
+        if frame is not None and self._prepare is not None:
+            self._prepare(t, frame)  # its messages too, off the instant's critical path
         if ready and self._trigger is not None:
             self._trigger.at(t + self._delay(), lambda: self._release(t))
 

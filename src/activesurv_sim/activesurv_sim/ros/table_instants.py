@@ -2,17 +2,19 @@
 
 On a capture request the table publishes ``sim/planned_object_state`` (what its program reaches
 at the instant: the simulated cameras render ahead with it) and sets a timer for the instant.
-There it publishes the object's state stamped exactly then: the truth the bag, the evaluation
-and the simulated cameras' check of what they rendered ahead hold against. With
-``instant_state_delay`` > 0 and no tick at the instant, that state goes out the delay
-(simulated seconds) later, past the cameras' imaging: no node of the system reads it, and on
-two cores its publication and its six readers took 1.5-2.5 ms of CPU from the three cameras
-imaging the instant (docs/performance.md). Its stamp is the instant's all the same; a state of
-a later time, and a stop, send it at once, so states keep their order.
+It publishes the object's state stamped exactly then: the truth the bag, the evaluation and
+the simulated cameras' check of what they rendered ahead hold against. With
+``instant_state_delay`` > 0 and no tick at the instant, the timer is set that delay (simulated
+seconds) past the instant, so the state goes out after the cameras' imaging: no node of the
+system reads it, and on two cores its publication and its six readers took 1.5-2.5 ms of CPU
+from the three cameras imaging the instant, and the table's own wake-up at the instant 0.2 ms
+more (docs/performance.md). Its stamp is the instant's all the same; a state of a later time,
+and a stop, send it at once, so states keep their order.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -22,7 +24,6 @@ from rclpy.publisher import Publisher
 from rclpy.timer import Timer
 
 from activesurv_common.ros.conversions import time_to_sec
-from activesurv_common.ros.deferred import Deferred
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 
@@ -55,12 +56,14 @@ class TableInstants:
         tick: bool,
         delay: float,
     ) -> None:
+        if not (math.isfinite(delay) and delay >= 0.0):
+            raise ValueError(f'instant_state_delay must be finite and >= 0, got {delay!r}')
         self._node, self._sim_time, self._wall0, self._rtf = node, sim_time, wall0, rtf
         self._states, self._planned, self._publish_at = states, planned, publish_at
         self._tick = tick
+        self._delay = 0.0 if tick else delay
         self.fired: dict[float, Timer | None] = {}  # instants scheduled (timer) or past (None)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._later = Deferred(node, 0.0 if tick else delay / rtf)
 
     def on_request(self, msg: CaptureRequest) -> None:
         t = time_to_sec(msg.demand_instant)
@@ -68,31 +71,40 @@ class TableInstants:
             return  # already scheduled (or a request replayed after its instant)
         for state in self._states(t):
             self._planned.publish(state)
+        # One timer, at the instant plus the delay: the table's process does not wake at the
+        # instant itself, where the cameras image.
         if self._wall0 is None:
             # On someone else's clock: a simulated-time timer fires at its first tick >= t.
-            delay = t - self._sim_time()
+            delay = t + self._delay - self._sim_time()
             self.fired[t] = self._node.create_timer(delay, lambda: self._fire(t))
             return
         wall0 = self._wall0()
         if wall0 is None:
             return
-        delay = max((t / self._rtf) - (time.monotonic() - wall0), 0.0)
+        delay = max((t + self._delay) / self._rtf - (time.monotonic() - wall0), 0.0)
         self.fired[t] = self._node.create_timer(delay, lambda: self._fire(t), clock=self._steady)
 
+    def waiting(self, before: float | None = None) -> list[float]:
+        """The instants passed (before ``before``, if given) whose state still waits its
+        delay, oldest first."""
+        end = self._sim_time() if before is None else before
+        return sorted(k for k, v in self.fired.items() if v is not None and k <= end)
+
     def flush(self) -> None:
-        """Send the instants' states still waiting, now (a later state goes out, or a stop)."""
-        if len(self._later):
-            self._later.flush()
+        """Send the states of the instants passed and still waiting, now, oldest first (a
+        later state goes out, or a stop)."""
+        for t in self.waiting():
+            self._fire(t)
 
     def _fire(self, t: float) -> None:
         timer = self.fired.get(t)
-        if timer is not None:
-            timer.cancel()
-            self._node.destroy_timer(timer)
-        if self._tick:
-            self._publish_at(t, True, True)
-        else:
-            self._later(lambda: self._publish_at(t, True, False))
+        if timer is None:
+            return  # sent already (flushed, or a zero-delay timer ready twice)
+        timer.cancel()
+        self._node.destroy_timer(timer)
+        self.fired[t] = None
+        for earlier in self.waiting(before=t):  # an earlier instant still waiting goes first
+            self._fire(earlier)
+        self._publish_at(t, True, self._tick)
         # Keep the fired instants a while (a request may come again), not for hours.
         self.fired = {k: v for k, v in self.fired.items() if k > t - 60.0}
-        self.fired[t] = None

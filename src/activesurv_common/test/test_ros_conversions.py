@@ -39,8 +39,6 @@ def test_camera_info_round_trip() -> None:
 
 
 def test_a_stamper_gives_each_frame_its_own_header_on_the_same_intrinsics() -> None:
-    from rclpy.serialization import serialize_message
-
     cam = CameraModel(640, 480, dynamic_camera().K, [-0.1, 0.01, 0.0, 0.0, 0.0], 'cam3')
     stamper = CameraInfoStamper(cam, 'cam3_optical')
     first, second = stamper(Time(sec=3, nanosec=5)), stamper(Time(sec=4))
@@ -48,8 +46,7 @@ def test_a_stamper_gives_each_frame_its_own_header_on_the_same_intrinsics() -> N
     assert second.header.stamp.sec == 4
     assert second.header.frame_id == 'cam3_optical'
     for stamp, msg in ((Time(sec=3, nanosec=5), first), (Time(sec=4), second)):
-        built = camera_info_from_model(cam, 'cam3_optical', stamp)
-        assert serialize_message(msg) == serialize_message(built)
+        assert msg == camera_info_from_model(cam, 'cam3_optical', stamp)
 
 
 def test_image_encodings_and_bad_buffers() -> None:

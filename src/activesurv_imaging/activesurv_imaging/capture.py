@@ -201,6 +201,9 @@ class CaptureCore(Generic[F]):
         self.joint_names = mount.joint_names if isinstance(mount, CameraMount) else ()
         self.joints = TimeSeries(max(len(self.joint_names), 1))
         self.pending: list[Request] = []
+        # The camera pose of a pending demand's instant, from the stage state published ahead
+        # for it: worked out then, not between the frame's arrival and its imaging.
+        self._poses: dict[float, Transform] = {}
         # A stable seed per camera: the injected noise repeats from run to run.
         self._rng = np.random.default_rng(zlib.crc32(config.camera_id.encode()))
 
@@ -237,6 +240,7 @@ class CaptureCore(Generic[F]):
         self.pending.append(
             Request(index, demand_time, prior, _finite(velocity), _finite(position))
         )
+        self._pose_ahead(demand_time)
 
     def add_frame(self, stamp: float, frame: F, received: float | None = None) -> None:
         """A frame by its stamp (its exposure instant is ``stamp - exposure_delay``);
@@ -251,13 +255,28 @@ class CaptureCore(Generic[F]):
 
     def add_joints(self, stamp: float, q: ArrayLike) -> bool:
         """Add a stage state; False (ignored) if it is not finite or has the wrong size."""
-        return self.joints.add(stamp, q)
+        if not self.joints.add(stamp, q):
+            return False
+        self._poses.pop(stamp, None)  # a new state of the instant (a new goal): its pose anew
+        if any(r.demand_time == stamp for r in self.pending):
+            self._pose_ahead(stamp)
+        return True
+
+    def _pose_ahead(self, t: float) -> None:
+        """The camera pose at a pending demand's instant ``t`` now, if its stage state is."""
+        if isinstance(self.mount, CameraMount) and self.joints.has(t):
+            q = self.joints.at(t)
+            if q is not None:
+                self._poses[t] = self.mount.pose_from_joints(q)
 
     # -- the work ------------------------------------------------------------------------
     def camera_pose(self, t: float) -> Transform | None:
         """``T_world_camera`` at ``t``, or None if no stage state covers ``t``."""
         if not isinstance(self.mount, CameraMount):
             return self.mount
+        ahead = self._poses.get(t)
+        if ahead is not None and self.joints.has(t):
+            return ahead  # the very sample of ``t``, worked out when it came
         q = self.joints.at(t, self.config.joint_hold)
         return None if q is None else self.mount.pose_from_joints(q)
 
@@ -272,6 +291,9 @@ class CaptureCore(Generic[F]):
             else:
                 done.append(replace(obs, demand_time=r.demand_time))
         self.pending = keep
+        if done and self._poses:
+            waiting = {r.demand_time for r in keep}
+            self._poses = {t: T for t, T in self._poses.items() if t in waiting}
         return done
 
     def _fail(

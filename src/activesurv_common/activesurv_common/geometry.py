@@ -232,4 +232,10 @@ class Transform:
         return Transform(self.R.T, -(self.R.T @ self.t))
 
     def quaternion(self) -> Vector:
-        return quaternion_from_matrix(self.R)
+        """The rotation's unit quaternion (x, y, z, w), worked out once per transform (an
+        imager's camera pose is converted ahead of its instant; its message takes it then)."""
+        q = self.__dict__.get('_quaternion')
+        if q is None:
+            q = quaternion_from_matrix(self.R)
+            object.__setattr__(self, '_quaternion', q)  # a frozen value's cache, not a field
+        return np.array(q)

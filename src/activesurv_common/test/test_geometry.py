@@ -53,6 +53,15 @@ def test_normal_quaternion_round_trip(n: tuple) -> None:  # type: ignore[type-ar
     assert np.allclose(normal_from_quaternion(quaternion_from_normal(n)), unit(n), atol=1e-9)
 
 
+def test_a_transforms_quaternion_is_its_rotations_and_a_callers_copy() -> None:
+    T = Transform.from_rt(rot_z(0.7) @ rot_x(0.2), [1.0, 2.0, 3.0])
+    q = T.quaternion()
+    assert np.allclose(q, quaternion_from_matrix(T.R))
+    q[:] = 0.0  # the caller's copy: the transform keeps its own
+    assert np.allclose(T.quaternion(), quaternion_from_matrix(T.R))
+    assert T.__dict__['_quaternion'] is not q  # worked out once, held apart
+
+
 def test_transform_compose_and_inverse() -> None:
     a = Transform.from_rt(rot_z(0.3), [1.0, 2.0, 3.0])
     b = Transform.from_rt(rot_x(-0.7), [0.1, 0.0, -0.2])

@@ -267,7 +267,9 @@ class CaptureCore(Generic[F]):
         if isinstance(self.mount, CameraMount) and self.joints.has(t):
             q = self.joints.at(t)
             if q is not None:
-                self._poses[t] = self.mount.pose_from_joints(q)
+                pose = self.mount.pose_from_joints(q)
+                pose.quaternion()  # for its message too
+                self._poses[t] = pose
 
     # -- the work ------------------------------------------------------------------------
     def camera_pose(self, t: float) -> Transform | None:

@@ -67,7 +67,6 @@ class CameraInfoStamper:
     """
 
     def __init__(self, model: CameraModel, frame_id: str) -> None:
-        self.model = model
         self._template = camera_info_from_model(model, frame_id, Time())
 
     def __call__(self, stamp: Time) -> CameraInfo:

@@ -29,6 +29,11 @@
   sum of the k imagings over the cores, whichever is longer, plus fusion's; median.
   ``latency_to_compute_on_cores`` is ``latency_ms`` over it: the part of the latency that is
   not this host's compute, even with perfect scheduling and no hops.
+* ``compute_unsplit_ms``: the same when each camera's imaging stays on one core, as it does
+  (one thread of its camera's process): the best assignment of the k imagings to the cores,
+  the busiest core's sum, plus fusion's; median. Three imagings on two cores: two of them one
+  after the other. ``latency_to_compute_unsplit`` is ``latency_ms`` over it: the graph's own
+  waits (hops, wake-ups, this VM's cold caches) beyond the compute as the processes can run it.
 * ``max_rtf``: the highest of 1, 1.5, 2, 3, 4 at which all ten demands are still ``ok`` (in
   one of at most two runs at that rtf: a shared machine's stall of a fraction of a second
   costs several demands at rtf 4); ``max_rtf_runs`` lists every run's ``ok`` per rtf.
@@ -60,7 +65,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from activesurv_evaluation.timing import compute_on_cores, critical_compute, published
+from activesurv_evaluation.timing import (
+    compute_on_cores,
+    compute_unsplit,
+    critical_compute,
+    published,
+)
 
 K = 3
 RUNS = int(os.environ.get('ACTIVESURV_BENCH_RUNS', '3'))
@@ -194,6 +204,7 @@ def _series(
     by_callback, in_callbacks, occupancy = None, None, None
     running: list[float] = []
     shared: list[float] = []
+    unsplit: list[float] = []
     n = 0
     for r in range(runs):
         name = f'{processes}{r}' + (f'_k{k}' if k else '') + ('_C' if two_objects else '')
@@ -214,6 +225,11 @@ def _series(
             c
             for d in doc['demands']
             if (c := compute_on_cores(d.get('timing') or {}, CORES)) is not None
+        ]
+        unsplit += [
+            c
+            for d in doc['demands']
+            if (c := compute_unsplit(d.get('timing') or {}, CORES)) is not None
         ]
         cores.append(cpu['cores'])
         if 'running' in cpu:
@@ -241,6 +257,10 @@ def _series(
         'compute_on_cores_ms': round(1e3 * statistics.median(shared), 2) if shared else None,
         'latency_to_compute_on_cores': round(statistics.median(lat) / statistics.median(shared), 2)
         if lat and shared
+        else None,
+        'compute_unsplit_ms': round(1e3 * statistics.median(unsplit), 2) if unsplit else None,
+        'latency_to_compute_unsplit': round(statistics.median(lat) / statistics.median(unsplit), 2)
+        if lat and unsplit
         else None,
         'cpu_cores': round(statistics.median(cores), 3),
         'cpu_cores_running': round(statistics.median(running), 3) if running else None,
@@ -278,6 +298,7 @@ def run() -> dict[str, object]:
             out[f'{k}_nodes'] = nodes[k]
         shown = ('ok', 'latency_ms', 'latency_p90_ms', 'compute_ms', 'latency_to_compute')
         shown += ('compute_on_cores_ms', 'latency_to_compute_on_cores')
+        shown += ('compute_unsplit_ms', 'latency_to_compute_unsplit')
         two = _series(tmp, 'containers', TWO_OBJECT_RUNS, two_objects=True)
         for k in (*shown, 'latency_p90_to_compute', 'cpu_cores', 'cpu_cores_running'):
             out[f'two_objects_{k}'] = two[k]

@@ -49,6 +49,54 @@ def test_prediction_horizon_to_dispatch_demands() -> None:
     assert d.covariance == pytest.approx(COV6)
 
 
+def test_a_horizons_orientations_follow_each_demands_normal() -> None:
+    """The horizon keeps the quaternions of the normals it has seen: each demand's is still
+    its own normal's."""
+    from activesurv_common.geometry import quaternion_from_normal
+    from activesurv_prediction.conversions import horizon_to_msg
+    from activesurv_prediction.demands import DemandPrediction
+    from activesurv_prediction.tracker import TrackState
+
+    normals = [np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0])]
+    preds = [
+        DemandPrediction(i, 7.0 + i, np.array([0.2, 0.05, 0.05]), n, COV6)
+        for i, n in enumerate(normals)
+    ]
+    for _ in range(2):  # the second horizon from what the first one kept
+        msg = horizon_to_msg(preds, TrackState.CONFIRMED, 6.0, 'world')
+        for d, n in zip(msg.demands, normals, strict=True):
+            o = d.pose.pose.orientation
+            assert [o.x, o.y, o.z, o.w] == list(quaternion_from_normal(n))
+            assert list(d.pose.covariance) == list(COV6.reshape(-1))
+
+
+def test_a_plans_camera_poses_are_each_mounts_own() -> None:
+    """A plan's desired camera poses are kept per mount and joints: two rigs with the same
+    camera and joints but mounted apart get their own poses, as computed afresh."""
+    from types import SimpleNamespace
+
+    from activesurv_common.mount import CameraMount
+    from activesurv_dispatch.conversions import plan_to_msg
+    from activesurv_dispatch.planner import Assignment, Plan, Role
+
+    q = np.array([0.1, 0.3])
+    for base_x in (0.0, 0.25, 0.0):
+        mount = CameraMount(
+            'cam1',
+            np.array([base_x, -0.4, 0.3]),
+            pitch=0.4,
+            linear_axis=np.array([1.0, 0.0, 0.0]),
+            linear_joint='cam1_linear',
+            rotary_joint='cam1_rotary',
+        )
+        sensor = SimpleNamespace(camera_id='cam1', joint_names=mount.joint_names, mount=mount)
+        setup = SimpleNamespace(sensors=(sensor,))
+        plan = Plan(1.0, 0, {'cam1': Assignment('cam1', Role.ASSIGNED, 0, q, 2.0)}, 2.0, False)
+        msg = plan_to_msg(plan, setup, 0, 'world')  # type: ignore[arg-type]
+        expected = pose_from_transform(mount.pose_from_joints(q))
+        assert msg.assignments[0].desired_camera_pose == expected
+
+
 def test_dispatch_goal_to_stage_items_and_capture_to_fusion_request() -> None:
     from activesurv_dispatch.conversions import capture_to_request, command_to_goal
     from activesurv_dispatch.motion import Capture, StageCommand

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose
+from numpy.typing import NDArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from activesurv_common.occlusion import Box
-from activesurv_common.ros.conversions import pose_from_transform, sec_to_time, time_to_sec
+from activesurv_common.ros.conversions import sec_to_time, time_to_sec
 from activesurv_dispatch.motion import Capture, StageCommand
 from activesurv_dispatch.planner import Demand, Plan, Role
-from activesurv_dispatch.sensors import Setup
+from activesurv_dispatch.sensors import Sensor, Setup
 from activesurv_interfaces.msg import (
     CaptureRequest,
     DemandHorizon,
@@ -69,6 +70,37 @@ def horizon_to_demands(msg: DemandHorizon) -> list[Demand]:
     return out
 
 
+class _CameraPoses:
+    """The camera pose (position and quaternion) of each camera's desired joints, kept for the
+    last few: a plan goes out at every overhead fix and mostly repeats the last one's poses."""
+
+    def __init__(self, size: int = 64) -> None:
+        self._size = size
+        # (id of the mount, joints) -> (the mount itself, x y z qx qy qz qw): the mount is
+        # held, so its id cannot pass to another while kept.
+        self._kept: dict[tuple[int, tuple[float, ...]], tuple[object, tuple[float, ...]]] = {}
+
+    def __call__(self, sensor: Sensor, q: NDArray[np.float64]) -> Pose:
+        key = (id(sensor.mount), tuple(float(v) for v in q))
+        kept = self._kept.get(key)
+        if kept is not None and kept[0] is sensor.mount:
+            values = kept[1]
+        else:
+            T = sensor.mount.pose_from_joints(q)
+            values = tuple(float(v) for v in (*T.t, *T.quaternion()))
+            if len(self._kept) >= self._size:
+                self._kept.pop(next(iter(self._kept)))
+            self._kept[key] = (sensor.mount, values)
+        p = Pose()
+        p.position.x, p.position.y, p.position.z = values[:3]
+        o = p.orientation
+        o.x, o.y, o.z, o.w = values[3:]
+        return p
+
+
+_camera_pose = _CameraPoses()
+
+
 def plan_to_msg(plan: Plan, setup: Setup, replans: int, frame_id: str) -> DispatchPlan:
     msg = DispatchPlan()
     msg.header.stamp = sec_to_time(plan.stamp)
@@ -85,9 +117,7 @@ def plan_to_msg(plan: Plan, setup: Setup, replans: int, frame_id: str) -> Dispat
         )
         sa.joint_names = list(s.joint_names)
         sa.desired_positions = [float(v) for v in a.desired]
-        q = a.desired
-        T = s.mount.pose_from_joints(q)
-        sa.desired_camera_pose = pose_from_transform(T)
+        sa.desired_camera_pose = _camera_pose(s, a.desired)
         sa.expected_visibility = float(a.visibility)
         msg.assignments.append(sa)
     return msg

@@ -37,6 +37,7 @@ sum over the cores.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -193,6 +194,34 @@ def compute_on_cores(timing: dict[str, Any], cores: int) -> float | None:
         return None
     fusion = float(timing.get('fusion_compute') or 0.0)
     return max(float(max(spent)), float(sum(spent)) / cores) + fusion
+
+
+def compute_unsplit(timing: dict[str, Any], cores: int) -> float | None:
+    """The least time the demand's compute takes on ``cores`` cores when each camera's imaging
+    runs on one core, as it does (one thread of its camera's process), s: the best assignment
+    of the imagings to the cores, its busiest core's sum, plus fusion's. Three imagings of
+    4 ms on two cores take 8 ms this way, against 6 ms (:func:`compute_on_cores`) were the
+    work divisible. None if no camera's is known."""
+    spent = sorted((float(v) for v in (timing.get('compute') or {}).values()), reverse=True)
+    if not spent or cores < 1:
+        return None
+    fusion = float(timing.get('fusion_compute') or 0.0)
+    if len(spent) <= cores:
+        return spent[0] + fusion
+    best = math.inf
+    if len(spent) <= 12:  # every assignment (the first imaging's core fixed: symmetry)
+        for ways in itertools.product(range(cores), repeat=len(spent) - 1):
+            load = [0.0] * cores
+            load[0] = spent[0]
+            for c, v in zip(ways, spent[1:], strict=True):
+                load[c] += v
+            best = min(best, max(load))
+    else:  # longest first onto the least loaded core (within 4/3 of the best)
+        load = [0.0] * cores
+        for v in spent:
+            load[load.index(min(load))] += v
+        best = max(load)
+    return best + fusion
 
 
 def camera_delays(demands: Iterable[dict[str, Any]]) -> list[float]:

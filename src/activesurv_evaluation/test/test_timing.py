@@ -10,6 +10,7 @@ from activesurv_evaluation.timing import (
     budget,
     camera_delays,
     compute_on_cores,
+    compute_unsplit,
     critical_compute,
     empty_timing,
     frames_bound,
@@ -69,6 +70,21 @@ def test_the_critical_path_holds_fusions_compute_and_the_cores_shared() -> None:
     assert older['fusion_compute'] is None
     assert critical_compute(older) == 0.004
     assert compute_on_cores(empty_timing(), 2) is None
+
+
+def test_each_imaging_on_one_core_the_busiest_core_bounds_the_demand() -> None:
+    """Three 4 ms imagings on two cores take 8 ms when each stays on one core (6 ms were the
+    work divisible); the best assignment, not the order heard, decides it."""
+    timing = {'compute': {'cam1': 0.004, 'cam2': 0.004, 'cam3': 0.004}, 'fusion_compute': 0.001}
+    assert abs(compute_unsplit(timing, 2) - 0.009) < 1e-12  # type: ignore[operator]
+    assert abs(compute_on_cores(timing, 2) - 0.007) < 1e-12  # type: ignore[operator]
+    assert abs(compute_unsplit(timing, 3) - 0.005) < 1e-12  # type: ignore[operator]
+    uneven = {'compute': {'a': 0.002, 'b': 0.005, 'c': 0.003, 'd': 0.004}, 'fusion_compute': None}
+    assert abs(compute_unsplit(uneven, 2) - 0.007) < 1e-12  # type: ignore[operator]  # 5+2, 4+3
+    many = {'compute': {f'c{i}': 0.001 for i in range(14)}}  # past brute force: longest first
+    assert abs(compute_unsplit(many, 4) - 0.004) < 1e-12  # type: ignore[operator]
+    assert compute_unsplit(empty_timing(), 2) is None
+    assert compute_unsplit(timing, 0) is None
 
 
 def test_missing_steps_are_null() -> None:

@@ -231,7 +231,12 @@ def track_rotation(heading: float) -> Array:
     """T (6, 6) taking a state from the world frame to the track frame (first axis along
     ``heading``, rad, second to its left): ``x_track = T x_world``."""
     c, s = math.cos(heading), math.sin(heading)
-    out: Array = np.kron(np.array([[c, s], [-s, c]]), np.eye(3))
+    # kron([[c, s], [-s, c]], I3), written out: np.kron's reshapes cost 0.1 ms a call here.
+    out: Array = np.zeros((6, 6))
+    i = np.arange(3)
+    out[i, i] = out[i + 3, i + 3] = c
+    out[i, i + 3] = s
+    out[i + 3, i] = -s
     return out
 
 

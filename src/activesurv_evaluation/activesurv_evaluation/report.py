@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -175,6 +176,7 @@ def write_report(docs: Sequence[dict[str, Any]], out_dir: Path) -> Path:
             d['demands'],
             out_dir / f'latency_{d["set"]}_{d["system"]}.png',
             f'Set {d["set"]} {d["system"]}: latency budget',
+            cores=len(os.sched_getaffinity(0)),  # the report is drawn where the run ran
         )
         if p is not None:
             plots.append(p)

@@ -3,6 +3,7 @@ and the table from above with every object's demand points and the cell's obstac
 
 from __future__ import annotations
 
+import os
 import statistics
 from pathlib import Path
 from typing import Any
@@ -121,7 +122,9 @@ def write_surveil_report(doc: dict[str, Any], out_dir: Path) -> Path:
     fig.savefig(png, dpi=90)
     plt.close(fig)
     top = _top_view(doc, out_dir / 'scene_top.png')
-    budget_png = plot_budget(doc['demands'], out_dir / 'latency.png', 'latency budget')
+    budget_png = plot_budget(
+        doc['demands'], out_dir / 'latency.png', 'latency budget', len(os.sched_getaffinity(0))
+    )
     wait = largest_wait(d['timing'] for d in doc['demands'] if d.get('timing'))
     s = doc['summary']
     title = f'Set {doc["set"]}' if doc.get('set') else 'continuous surveillance'

@@ -298,10 +298,14 @@ SEGMENT_COLOURS = {
 }
 
 
-def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path | None:
+def plot_budget(
+    rows: Sequence[dict[str, Any]], path: Path, title: str, cores: int | None = None
+) -> Path | None:
     """A stacked bar per demand (ms after its instant): until the stage state, the frames,
     the observations, the estimate (``rows``: results.json demands), and a black line at the
     demand's compute on the critical path (:func:`critical_compute`), the least it could take.
+    With ``cores``, a dashed line where its cameras' imagings outnumber them: the least the
+    same compute takes with each imaging on one core (:func:`compute_unsplit`).
     Returns ``path``, or None when no demand has a timing."""
     # matplotlib (heavy) only when a figure is drawn
     import matplotlib
@@ -309,11 +313,16 @@ def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    timed = [r for r in rows if r.get('timing')]
-    bars = [(int(r['index']), budget(r['timing']), critical_compute(r['timing'])) for r in timed]
-    bars = [(j, b, c) for j, b, c in bars if b]
-    if not bars:
+    timed = [r for r in rows if r.get('timing') and budget(r['timing'])]
+    if not timed:
         return None
+    bars = [(int(r['index']), budget(r['timing']), critical_compute(r['timing'])) for r in timed]
+    unsplit = [
+        compute_unsplit(r['timing'], cores)
+        if cores and len(r['timing'].get('compute') or {}) > cores
+        else None
+        for r in timed
+    ]
     fig, ax = plt.subplots(figsize=(max(6.0, 0.25 * len(bars) + 2.0), 3.4))
     shown: set[str] = set()
     for x, (_, segments, compute) in enumerate(bars):
@@ -327,6 +336,15 @@ def plot_budget(rows: Sequence[dict[str, Any]], path: Path, title: str) -> Path 
             label = None if 'compute' in shown else 'compute on the critical path'
             shown.add('compute')
             ax.plot([x - 0.4, x + 0.4], [1e3 * compute] * 2, color='k', lw=1.5, label=label)
+        if unsplit[x] is not None:
+            label = (
+                None if 'unsplit' in shown else f'the same, each imaging on one of {cores} cores'
+            )
+            shown.add('unsplit')
+            level = [1e3 * float(unsplit[x] or 0.0)] * 2
+            ax.plot([x - 0.4, x + 0.4], level, color='k', lw=1.2, ls='--', label=label)
+    top = max(1e3 * sum(seg for _, seg in segments) for _, segments, _ in bars)
+    ax.set_ylim(0.0, 1.3 * top if top > 0.0 else 1.0)  # room for the legend
     ax.set_xticks(range(len(bars)))
     ax.set_xticklabels(
         [str(j) if len(bars) <= 40 or i % 10 == 0 else '' for i, (j, _, _) in enumerate(bars)],

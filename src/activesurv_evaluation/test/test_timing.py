@@ -108,6 +108,9 @@ def test_the_budget_is_drawn(tmp_path: Path) -> None:
     assert png is not None
     assert png.stat().st_size > 1000
     assert plot_budget([{'index': 0, 'timing': empty_timing()}], tmp_path / 'no.png', 'x') is None
+    three = {c: 0.004 for c in ('cam1', 'cam2', 'cam3')}
+    rows = [{'index': 0, 'timing': {**rows[0]['timing'], 'compute': three}}]
+    assert plot_budget(rows, tmp_path / 'cores.png', 'budget', cores=2) is not None
 
 
 def test_without_frames_in_the_bag_the_imager_says_when_its_frame_came() -> None:

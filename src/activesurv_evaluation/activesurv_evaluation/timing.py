@@ -209,7 +209,7 @@ def compute_unsplit(timing: dict[str, Any], cores: int) -> float | None:
     if len(spent) <= cores:
         return spent[0] + fusion
     best = math.inf
-    if len(spent) <= 12:  # every assignment (the first imaging's core fixed: symmetry)
+    if cores ** (len(spent) - 1) <= 4096:  # every assignment (the first's core fixed)
         for ways in itertools.product(range(cores), repeat=len(spent) - 1):
             load = [0.0] * cores
             load[0] = spent[0]

@@ -83,6 +83,8 @@ def test_each_imaging_on_one_core_the_busiest_core_bounds_the_demand() -> None:
     assert abs(compute_unsplit(uneven, 2) - 0.007) < 1e-12  # type: ignore[operator]  # 5+2, 4+3
     many = {'compute': {f'c{i}': 0.001 for i in range(14)}}  # past brute force: longest first
     assert abs(compute_unsplit(many, 4) - 0.004) < 1e-12  # type: ignore[operator]
+    wide = {'compute': {f'c{i}': 0.001 * (i % 3 + 1) for i in range(12)}}  # 8 cores: at once
+    assert abs(compute_unsplit(wide, 8) - 0.003) < 1e-12  # type: ignore[operator]
     assert compute_unsplit(empty_timing(), 2) is None
     assert compute_unsplit(timing, 0) is None
 

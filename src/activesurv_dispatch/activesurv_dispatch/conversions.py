@@ -8,8 +8,9 @@ from geometry_msgs.msg import Point, Pose
 from numpy.typing import NDArray
 from visualization_msgs.msg import Marker, MarkerArray
 
+from activesurv_common.geometry import Transform
 from activesurv_common.occlusion import Box
-from activesurv_common.ros.conversions import sec_to_time, time_to_sec
+from activesurv_common.ros.conversions import pose_from_transform, sec_to_time, time_to_sec
 from activesurv_dispatch.motion import Capture, StageCommand
 from activesurv_dispatch.planner import Demand, Plan, Role
 from activesurv_dispatch.sensors import Sensor, Setup
@@ -71,31 +72,24 @@ def horizon_to_demands(msg: DemandHorizon) -> list[Demand]:
 
 
 class _CameraPoses:
-    """The camera pose (position and quaternion) of each camera's desired joints, kept for the
-    last few: a plan goes out at every overhead fix and mostly repeats the last one's poses."""
+    """The camera pose of each camera's desired joints, kept for the last few: a plan goes out
+    at every overhead fix and mostly repeats the last one's poses (a kept transform also keeps
+    its quaternion, :meth:`Transform.quaternion`)."""
 
     def __init__(self, size: int = 64) -> None:
         self._size = size
-        # (id of the mount, joints) -> (the mount itself, x y z qx qy qz qw): the mount is
+        # (id of the mount, joints) -> (the mount itself, its camera pose there): the mount is
         # held, so its id cannot pass to another while kept.
-        self._kept: dict[tuple[int, tuple[float, ...]], tuple[object, tuple[float, ...]]] = {}
+        self._kept: dict[tuple[int, tuple[float, ...]], tuple[object, Transform]] = {}
 
     def __call__(self, sensor: Sensor, q: NDArray[np.float64]) -> Pose:
         key = (id(sensor.mount), tuple(float(v) for v in q))
         kept = self._kept.get(key)
-        if kept is not None and kept[0] is sensor.mount:
-            values = kept[1]
-        else:
-            T = sensor.mount.pose_from_joints(q)
-            values = tuple(float(v) for v in (*T.t, *T.quaternion()))
+        if kept is None or kept[0] is not sensor.mount:
             if len(self._kept) >= self._size:
                 self._kept.pop(next(iter(self._kept)))
-            self._kept[key] = (sensor.mount, values)
-        p = Pose()
-        p.position.x, p.position.y, p.position.z = values[:3]
-        o = p.orientation
-        o.x, o.y, o.z, o.w = values[3:]
-        return p
+            kept = self._kept[key] = (sensor.mount, sensor.mount.pose_from_joints(q))
+        return pose_from_transform(kept[1])
 
 
 _camera_pose = _CameraPoses()

@@ -78,6 +78,44 @@ class PhaseLock:
         return True
 
 
+class ExposureClock:
+    """A free-running camera's exposures: ``phase + n / rate``, every one of them.
+
+    A camera's sensor clock does not skip an exposure because the host that reads it out was
+    busy; a periodic timer in a busy process does (a lab camera's timer at 30 Hz exposed at
+    28 Hz, and the exposures it lost fell where the graph was busiest: at demand instants).
+    :meth:`due` returns every exposure since the last call, on the grid, however late the call.
+    After a stall longer than ``max_late`` (a process stopped in a debugger) the older ones are
+    counted in :attr:`lost` instead: a camera's buffer overflows too.
+
+    Args:
+        rate: exposures per second (> 0).
+        phase: s, the first exposure (any finite value).
+        max_late: s, the oldest exposure one call returns (> 0).
+    """
+
+    def __init__(self, rate: float, phase: float, max_late: float = 1.0) -> None:
+        if not (math.isfinite(rate) and rate > 0.0):
+            raise CommonError(f'rate must be finite and > 0, got {rate}')
+        if not math.isfinite(phase):
+            raise CommonError(f'phase must be finite, got {phase}')
+        if not (math.isfinite(max_late) and max_late > 0.0):
+            raise CommonError(f'max_late must be finite and > 0, got {max_late}')
+        self.rate, self.phase, self.max_late = float(rate), float(phase), float(max_late)
+        self._next = 0  # the index of the next exposure
+        self.lost = 0
+
+    def due(self, now: float) -> list[float]:
+        """The exposures at or before ``now`` not returned yet, oldest first."""
+        last = math.floor((now - self.phase) * self.rate + 1e-9)
+        if last < self._next:
+            return []
+        oldest = max(self._next, math.ceil((now - self.max_late - self.phase) * self.rate))
+        self.lost += oldest - self._next
+        self._next = last + 1
+        return [self.phase + n / self.rate for n in range(oldest, last + 1)]
+
+
 class ViewThrottle:
     """Messages only viewers read (markers), thinned: one per ``period`` of the caller's clock
     at most, but one whose content changed in kind (its ``key``: a plan's roles, the set of

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from activesurv_common.errors import CommonError
-from activesurv_common.pacing import Pacer, PhaseLock, ViewThrottle
+from activesurv_common.pacing import ExposureClock, Pacer, PhaseLock, ViewThrottle
 
 
 def test_a_faster_stream_is_thinned_to_the_rate() -> None:
@@ -70,3 +70,21 @@ def test_view_throttle_period_zero_lets_all_through_and_bad_periods_are_refused(
     for bad in (-0.1, float('nan'), float('inf')):
         with pytest.raises(CommonError, match='period'):
             ViewThrottle(bad)
+
+
+def test_an_exposure_clock_returns_every_exposure_on_its_grid_however_late_it_is_asked() -> None:
+    clock = ExposureClock(30.0, 100.0)
+    assert clock.due(99.99) == []
+    assert clock.due(100.0) == [100.0]
+    assert clock.due(100.01) == []
+    late = clock.due(100.2)  # asked 170 ms late: the five exposures since, on the grid
+    assert late == pytest.approx([100.0 + n / 30.0 for n in range(1, 7)])
+    assert clock.due(100.2) == []
+    assert clock.lost == 0
+    stalled = clock.due(103.0)  # a 2.8 s stall: the last second's exposures, the rest lost
+    assert len(stalled) == 31
+    assert stalled[0] == pytest.approx(102.0)
+    assert stalled[-1] == pytest.approx(103.0)
+    assert clock.lost == 53  # exposures 7-59: older than a second when asked
+    with pytest.raises(CommonError):
+        ExposureClock(0.0, 0.0)

@@ -1,16 +1,17 @@
 """The ``lab_camera`` node: a simulated camera that behaves like a free-running camera driver.
 
 For the hardware-in-the-loop lab (``activesurv lab``). It exposes on its own wall clock at
-``frame_rate`` (its phase is not the demand instants'), renders the scene as the stage and table
-controllers report it (``<camera_id>/stage/joint_states``, ``object_state``), and publishes best
-effort, as camera drivers do, each frame stamped on arrival: the exposure instant plus
-``exposure_delay`` (exposure and read-out) plus Gaussian ``jitter`` plus its clock's
-``clock_offset``; ``drop_rate`` of the frames never arrive. Nothing here knows a capture
-request. Optics and mount come from the rig file (the truth), ``camera_info`` from the
-calibration the lab's driver ships (``camera_info_file``). What the carriage carries follows
-what the lab is used for: the object while something reports it (a hardware run's
-``table_runner`` publishes ``object_state``), else the commissioning boards at the position
-the table controller reports (``xy_table/stage/joint_states``).
+``frame_rate`` (its phase is not the demand instants'), each exposure of that grid even when
+its timer fires late (:class:`~activesurv_common.pacing.ExposureClock`), renders the scene as
+the stage and table controllers report it (``<camera_id>/stage/joint_states``,
+``object_state``), and publishes best effort, as camera drivers do, each frame stamped on
+arrival: the exposure instant plus ``exposure_delay`` (exposure and read-out) plus Gaussian
+``jitter`` plus its clock's ``clock_offset``; ``drop_rate`` of the frames never arrive. Nothing
+here knows a capture request. Optics and mount come from the rig file (the truth),
+``camera_info`` from the calibration the lab's driver ships (``camera_info_file``). What the
+carriage carries follows what the lab is used for: the object while something reports it (a
+hardware run's ``table_runner`` publishes ``object_state``), else the commissioning boards at
+the position the table controller reports (``xy_table/stage/joint_states``).
 Parameters: ``sim_camera``'s but its clock's, and ``exposure_delay``, ``jitter``, ``drop_rate``.
 """
 
@@ -26,6 +27,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_srvs.srv import Trigger
 
 from activesurv_common.errors import CommonError
+from activesurv_common.pacing import ExposureClock
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import (
     MOUNT_PARAMETERS,
@@ -44,6 +46,7 @@ from activesurv_interfaces.msg import ObjectState
 from activesurv_sim import conversions as conv
 from activesurv_sim.conversions import published_model, simulated_camera
 from activesurv_sim.errors import SimError
+from activesurv_sim.lab_stats import LabCameraStats
 from activesurv_sim.sim_camera import on_table
 from activesurv_sim.sim_camera_params import PARAMS as SIM_CAMERA_PARAMS
 from activesurv_sim.xytable import TABLE_ID, TABLE_JOINTS
@@ -58,6 +61,9 @@ LAB_PARAMS = (
 OWN_CLOCK = ('frame_phase', 'own_trigger', 'remote_delay')  # own clock; no imager beside it
 CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name not in OWN_CLOCK)
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
+# Exposures a late timer still makes (a demand instant's burst of work on the host); a host
+# that cannot render the rate at all sheds the older ones (``lost``), not every later frame.
+LATE_PERIODS = 3.0
 
 
 class LabCameraNode(Node):
@@ -83,9 +89,8 @@ class LabCameraNode(Node):
         self.clock_offset = float(v['clock_offset'])
         self.drop_rate, self.hold = float(v['drop_rate']), float(v['state_hold'])
         self.rng = np.random.default_rng(int(v['seed']))
-        self.frames = self.dropped = self.missed = 0
         self.pending: list[float] = []
-        self.render_s = 0.0
+        self.stats = LabCameraStats(rate, time.monotonic())
         self._image_pub = self.create_publisher(Image, topics.image(self.camera_id), qos.SENSOR)
         self._info_pub = self.create_publisher(
             CameraInfo, topics.camera_info(self.camera_id), qos.SENSOR
@@ -101,10 +106,12 @@ class LabCameraNode(Node):
                 JointState, topics.joint_states(self.camera_id), self._on_joints, qos.SENSOR
             )
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.rate, self.exposures, self.started = rate, 0, time.monotonic()
-        if v['software_trigger']:  # a triggered driver: an exposure per call, as it comes
+        self.grid: ExposureClock | None = None  # a triggered driver: an exposure per call
+        if v['software_trigger']:
             self.create_service(Trigger, '~/trigger', self._on_trigger)
-        else:
+        else:  # free-running: the exposures of its own grid, though its timer be late
+            now = self.get_clock().now().nanoseconds * 1e-9
+            self.grid = ExposureClock(rate, now, max_late=LATE_PERIODS / rate)
             self.create_timer(1.0 / rate, self._expose, clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
         self.create_timer(10.0, self._say_rate, clock=steady)
@@ -129,13 +136,16 @@ class LabCameraNode(Node):
 
     def _on_trigger(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self._expose()
-        response.success = True
-        return response
+        return Trigger.Response(success=True)
 
     def _expose(self) -> None:
-        """An exposure now; its frame is made once the controllers have reported past it."""
-        self.exposures += 1
-        self.pending.append(self.get_clock().now().nanoseconds * 1e-9)
+        """The exposures up to now; each frame is made once the controllers have reported
+        past its exposure."""
+        now = self.get_clock().now().nanoseconds * 1e-9
+        due = [now] if self.grid is None else self.grid.due(now)
+        self.stats.exposures += len(due)
+        self.stats.lost = self.grid.lost if self.grid is not None else 0
+        self.pending.extend(due)
         self._develop()
 
     def _develop(self) -> None:
@@ -158,37 +168,25 @@ class LabCameraNode(Node):
         try:
             gray = sim.render_at(t, self.hold)
         except (SimError, CommonError):
-            self.missed += 1  # no state yet (controllers still connecting): nothing to see
+            self.stats.missed += 1  # no state yet (controllers still connecting): nothing to see
             return
-        self.render_s += time.perf_counter() - started
+        self.stats.render_s += time.perf_counter() - started
         if self.rng.random() < self.drop_rate:
-            self.dropped += 1
+            self.stats.dropped += 1
             return
         noise = self.jitter * float(self.rng.standard_normal())
         stamp = sec_to_time(t + self.delay + self.clock_offset + noise)
         self._image_pub.publish(gray_to_image(gray, self.frame_id, stamp))
         self._info_pub.publish(self.info(stamp))
-        self.frames += 1
+        self.stats.sent(t, self.get_clock().now().nanoseconds * 1e-9)
 
     def _say_rate(self) -> None:
-        """What the camera achieves on this machine (a busy one exposes less often)."""
-        hz = self.exposures / max(time.monotonic() - self.started, 1e-9)
-        ms = 1e3 * self.render_s / max(self.frames + self.dropped, 1)
-        slow = ' (slower than asked: the machine cannot keep up)' if hz < 0.9 * self.rate else ''
-        self.get_logger().info(
-            f'{hz:.1f} Hz of {self.rate:g} Hz{slow}; {self.frames} frames sent, '
-            f'{self.dropped} dropped, {self.missed} without state; render {ms:.1f} ms'
-        )
+        """What the camera achieves on this machine (a busy one delivers late)."""
+        self.get_logger().info(self.stats.summary(time.monotonic()))
 
     def _publish_diagnostics(self) -> None:
-        ms = 1e3 * self.render_s / max(self.frames + self.dropped, 1)
-        s = diagnostics.status(
-            f'activesurv/lab_camera/{self.camera_id}',
-            self.camera_id,
-            f'{self.frames} frames, {self.dropped} dropped, render {ms:.1f} ms',
-            dict(frames=self.frames, dropped=self.dropped, missed=self.missed, render_ms=ms),
-            diagnostics.OK,
-        )
+        name, st = f'activesurv/lab_camera/{self.camera_id}', self.stats
+        s = diagnostics.status(name, self.camera_id, st.short(), st.values(), diagnostics.OK)
         self._diag_pub.publish(diagnostics.array(self.get_clock().now().to_msg(), s))
 
 

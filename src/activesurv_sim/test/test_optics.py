@@ -10,6 +10,7 @@ import pytest
 
 from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.mount import CameraMount
+from activesurv_sim.lab_stats import LabCameraStats
 from activesurv_sim.optics import Optics, OpticsError, frame_optics
 from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise, look_at
 from activesurv_sim.rig import RigError, nominal_rig, rig_from_dict, rig_to_dict
@@ -161,3 +162,19 @@ def test_a_lab_camera_sees_the_object_while_it_is_reported_else_the_boards() -> 
     assert on_table(objects, boards, 10.5) is objects
     assert on_table(objects, boards, 9.0) is objects  # an exposure just before its first state
     assert on_table(objects, boards, 10.0 + OBJECT_GONE + 0.1) is boards  # it left the table
+
+
+def test_a_lab_cameras_report_says_how_late_its_frames_went_out() -> None:
+    stats = LabCameraStats(30.0, started=0.0)
+    for n in range(30):
+        stats.sent(n / 30.0, n / 30.0 + 0.05 + 0.002 * n)
+    stats.dropped, stats.lost, stats.render_s = 1, 2, 0.31
+    line = stats.summary(now=1.0)
+    assert line.startswith('31.0 Hz of 30 Hz; 30 frames sent, 1 dropped, 0 without state')
+    assert '2 exposures lost' in line
+    assert 'render 10.0 ms' in line
+    assert 'sent 79 ms after exposure (median)' in line
+    assert stats.values()['delivered_ms'] == pytest.approx(79.0)
+    slow = LabCameraStats(30.0, started=0.0)
+    slow.frames = 20
+    assert 'cannot keep up' in slow.summary(now=1.0)

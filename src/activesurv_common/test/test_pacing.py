@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from activesurv_common.errors import CommonError
-from activesurv_common.pacing import ExposureClock, Pacer, PhaseLock, ViewThrottle
+from activesurv_common.pacing import Backoff, ExposureClock, Pacer, PhaseLock, ViewThrottle
 
 
 def test_a_faster_stream_is_thinned_to_the_rate() -> None:
@@ -88,3 +88,13 @@ def test_an_exposure_clock_returns_every_exposure_on_its_grid_however_late_it_is
     assert clock.lost == 53  # exposures 7-59: older than a second when asked
     with pytest.raises(CommonError):
         ExposureClock(0.0, 0.0)
+
+
+def test_a_backoff_doubles_while_polls_find_nothing_and_starts_over_when_one_does() -> None:
+    b = Backoff(0.5, 4.0)
+    assert [b.after(False) for _ in range(5)] == [1.0, 2.0, 4.0, 4.0, 4.0]
+    assert b.after(True) == 0.5
+    assert b.after(False) == 1.0
+    assert Backoff(0.5, 0.5).after(False) == 0.5  # maximum == base: a fixed period
+    with pytest.raises(CommonError):
+        Backoff(0.5, 0.25)

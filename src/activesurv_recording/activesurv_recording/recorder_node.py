@@ -31,6 +31,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 
+from activesurv_common.pacing import Backoff
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
@@ -84,18 +85,17 @@ class RecorderNode(Node):
             raise BagError('run_info must be a JSON object')
         info['recorder'] = {**(info.get('recorder') or {}), 'qos': 'offered'}
         self.bag.write_json(RUN_INFO_TOPIC, 0, info)
-        # Discovery runs on the wall clock: with simulated time nothing would tick before /clock.
-        self.create_timer(
-            float(g('discovery_period').value),
-            self._discover,
-            clock=Clock(clock_type=ClockType.STEADY_TIME),
-        )
+        # On the wall clock (simulated time: nothing ticks before /clock), backing off while idle.
+        base, most = float(g('discovery_period').value), float(g('discovery_period_max').value)
+        self._backoff = Backoff(base, max(most, base))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._discovery = self.create_timer(base, self._discover, clock=steady)
         self.exclude.add(STATUS_TOPIC)  # never our own status
         self._discover()
         flush_period = float(g('flush_period').value)
         if not flush_period > 0.0:
             raise BagError(f'flush_period must be > 0 s, got {flush_period}')
-        self.create_timer(flush_period, self._flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(flush_period, self._flush, clock=steady)
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, qos.STATUS)
 
     def _flush(self) -> None:
@@ -114,6 +114,11 @@ class RecorderNode(Node):
         return recording_qos(publishers, qos.published_depth(topic)) if publishers else None
 
     def _discover(self) -> None:
+        n = len(self.subscribed)
+        self._look()
+        self._discovery.timer_period_ns = int(1e9 * self._backoff.after(len(self.subscribed) > n))
+
+    def _look(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subscribed or topic in self.exclude or not types:
                 continue

@@ -10,6 +10,12 @@ PARAMS = (
     Param('exclude', ['/rosout', '/parameter_events'], 'topics not recorded'),
     Param('strip_namespace', '', "a rig's namespace: /NS/x is recorded as /x"),
     Param('discovery_period', 0.5, 's between topic discoveries', above=0.0),
+    Param(
+        'discovery_period_max',
+        4.0,
+        's between discoveries once they find nothing (doubling; a new topic: the period)',
+        above=0.0,
+    ),
     Param('run_info', '{}', 'JSON stored in the bag'),
     Param('flush_period', 0.5, 's between flushes to disk (SIGKILL loses less)', above=0.0),
     Param(

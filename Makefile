@@ -52,12 +52,14 @@ $(STAMPS)/packages: $(STAMPS)/interfaces $(PKG_META)
 	$(PIP) install -q --no-deps --no-build-isolation $(foreach p,$(PKGS),-e src/$(p))
 	@touch $@
 
-# The imager's compiled loops (numba), cached beside their source: compiled here once, not by
-# the first camera of the first run.
-KERNELS := src/activesurv_imaging/activesurv_imaging/kernels.py
+# The imager's and the renderer's compiled loops (numba), cached beside their source: compiled
+# here once, not by the first camera of the first run.
+KERNELS := src/activesurv_imaging/activesurv_imaging/kernels.py \
+	src/activesurv_sim/activesurv_sim/render_kernels.py
 $(STAMPS)/kernels: $(STAMPS)/packages $(KERNELS)
-	@echo 'compiling the imaging kernels (once, about 20 s)'
+	@echo 'compiling the imaging and rendering kernels (once, about 25 s)'
 	$(PY) -c 'from activesurv_imaging.kernels import warm_up; warm_up()'
+	$(PY) -c 'from activesurv_sim.render_kernels import warm_up; warm_up()'
 	@touch $@
 
 # Our modules byte-compiled, and again whenever one changes (under a second): where

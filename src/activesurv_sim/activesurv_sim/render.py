@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, as_vector3, cross3, unit
+from activesurv_sim import render_kernels as kernels
 from activesurv_sim.errors import RenderError
 
 Array = NDArray[np.float64]
@@ -297,7 +298,7 @@ def _back_face(plate: Plate, T_world_camera: Transform) -> bool:
 
 
 ANTIALIAS = ('coverage', 'supersample')
-_FAR = np.float32(1e3)  # plate coordinate (m) given to rays that miss a plate's plane
+_FAR = kernels.FAR  # plate coordinate (m) given to rays that miss a plate's plane
 
 
 class Renderer:
@@ -450,11 +451,22 @@ class Renderer:
 
         The box is cut into TILE x TILE tiles. A tile whose centre lies more than
         ``_UNIFORM_PX`` pixels from every boundary is uniform (coverage 0 or 1, one level)
-        and filled from its centre; only the other tiles are computed pixel by pixel.
+        and filled from its centre; only the other tiles are computed pixel by pixel: compiled
+        for plain and disc plates (:mod:`activesurv_sim.render_kernels`), in numpy for boards.
         """
+        f = _PlateFrame(plate, T, self.camera)
+        if plate.pattern is Pattern.CHECKER:
+            return self._cover_arrays(f, box)
+        disc = plate.pattern is Pattern.DISC
+        M, p = f.kernel_parameters()
+        return kernels.cover(self._rays32, np.array(box), M, p, disc, TILE, _UNIFORM_PX32)
+
+    def _cover_arrays(
+        self, f: _PlateFrame, box: tuple[int, int, int, int]
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """:meth:`_cover` in numpy array operations (any plate; the reference)."""
         u0, u1, v0, v1 = box
         hb, wb = v1 - v0, u1 - u0
-        f = _PlateFrame(plate, T, self.camera)
         ty, tx = -(-hb // TILE), -(-wb // TILE)
         cv = np.minimum(np.arange(ty) * TILE + TILE // 2, hb - 1) + v0
         cu = np.minimum(np.arange(tx) * TILE + TILE // 2, wb - 1) + u0
@@ -591,6 +603,7 @@ def _frame_key(
 
 TILE = 8
 _UNIFORM_PX = 1.5 * TILE  # > the farthest pixel of a tile from its centre, with margin
+_UNIFORM_PX32 = np.float32(_UNIFORM_PX)
 
 
 class _PlateFrame:
@@ -607,6 +620,13 @@ class _PlateFrame:
         self.b0 = np.float32(rel0 @ plate.y_axis)
         self.fx_inv = np.float32(1.0 / camera.fx)
         self.fy_inv = np.float32(1.0 / camera.fy)
+
+    def kernel_parameters(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """``M`` and the scalars :func:`activesurv_sim.render_kernels.cover` takes."""
+        pl = self.plate
+        scalars = (self.n0, self.a0, self.b0, self.fx_inv, self.fy_inv, *pl.half_size)
+        p = np.array([*scalars, pl.radius, pl.plate_level, pl.mark_level], dtype=np.float32)
+        return np.ascontiguousarray(self.M), p
 
     def fields(
         self, rays: NDArray[np.float32]

@@ -24,7 +24,7 @@ class LabCameraStats:
     frames: int = 0  # published
     dropped: int = 0  # rendered, then dropped as configured (frames that never arrive)
     missed: int = 0  # no controller state near the exposure: nothing to see
-    lost: int = 0  # exposures older than the exposure clock's reach (a stalled host)
+    lost: int = 0  # exposures older than the exposure clock's reach (a process too busy)
     render_s: float = 0.0
     delivered: deque[float] = field(default_factory=lambda: deque(maxlen=300))
 
@@ -49,7 +49,7 @@ class LabCameraStats:
             f'{self.dropped} dropped, {self.missed} without state'
         )
         if self.lost:
-            out += f', {self.lost} exposures lost (the host stalled)'
+            out += f', {self.lost} exposures lost (the process too busy to take them)'
         out += f'; render {self.render_ms():.1f} ms'
         return out + (f'; sent {late:.0f} ms after exposure (median)' if late is not None else '')
 

@@ -9,6 +9,8 @@ in front of a uniform background. Two ways to anti-alias the edges (``SensorNois
   (plate edge, disc rim, checker line) is a signed distance in the plate plane; divided by its
   gradient in pixels (from the local plate-to-pixel Jacobian) it gives the fraction of the pixel
   on either side, as a box filter across the edge would. Plates are composited by depth.
+  The pixels of a plain or disc plate are a compiled loop (:mod:`activesurv_sim.render_kernels`,
+  the same float32 arithmetic as the array code boards still use).
 * ``supersample``: pixels on an edge (a neighbour has another label) are re-rendered with
   ``supersample x supersample`` rays (float64); slower, kept as the reference.
 

@@ -13,7 +13,7 @@ PARAMS = (
     Param(
         'discovery_period_max',
         4.0,
-        's between discoveries once they find nothing (doubling; a new topic: the period)',
+        's between discoveries that find nothing (doubling; at least discovery_period)',
         above=0.0,
     ),
     Param('run_info', '{}', 'JSON stored in the bag'),

@@ -5,7 +5,8 @@ A free-running lab camera exposes on its own grid (:class:`activesurv_common.pac
 ExposureClock`) and makes each frame once the controllers have reported past its exposure, so
 a busy machine delays frames but exposes them all. What a busy machine costs shows in
 ``delivered_ms`` (exposure to publication, median of the last 300 frames) and ``Hz``: the
-frames published per second, against the rate asked for.
+exposures it got to per second (sent, dropped as configured, or without a controller's
+state), against the rate asked for; the rest were lost or still wait.
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ class LabCameraStats:
 
     def summary(self, now: float) -> str:
         """One line: the rate achieved, the counts, the render and the delivery times."""
-        hz = (self.frames + self.dropped) / max(now - self.started, 1e-9)
+        made = self.frames + self.dropped + self.missed  # every exposure it got to
+        hz = made / max(now - self.started, 1e-9)
         slow = ' (slower than asked: the machine cannot keep up)' if hz < 0.9 * self.rate else ''
         late = self.delivered_ms()
         out = (
@@ -61,6 +63,7 @@ class LabCameraStats:
         """For /diagnostics."""
         late = self.delivered_ms()
         return dict(
+            exposures=self.exposures,
             frames=self.frames,
             dropped=self.dropped,
             missed=self.missed,

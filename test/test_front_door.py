@@ -4,6 +4,7 @@ long step (no commissioning, no nodes) with a one-line reason and no output dire
 from __future__ import annotations
 
 import os
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -11,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import activesurv_bringup
-from activesurv_bringup.cli import _build_parser
+from activesurv_bringup.cli import EXAMPLES, _build_parser
 
 pytestmark = pytest.mark.cli
 
@@ -141,6 +142,23 @@ def _flags(parser: object) -> list[tuple[str, object]]:
 def test_every_flag_has_help() -> None:
     missing = [flag for flag, act in _flags(_build_parser()) if not getattr(act, 'help', None)]
     assert not missing, f'flags without help: {missing}'
+
+
+def test_the_help_overview_parses_and_names_every_command() -> None:
+    """``activesurv --help`` ends with typical invocations: each parses with the real parser
+    (a renamed flag or a dropped choice fails here), and every command has one."""
+    parser = _build_parser()
+    lines = [ln.split('#', 1)[0].strip() for ln in EXAMPLES.splitlines()]
+    examples = [shlex.split(ln)[1:] for ln in lines if ln.startswith('activesurv ')]
+    assert len(examples) >= 20
+    for argv in examples:
+        try:
+            parser.parse_args(argv)
+        except SystemExit as exc:
+            pytest.fail(f'--help shows an invocation it refuses: {shlex.join(argv)} ({exc})')
+    commands = next(a for a in parser._actions if a.dest == 'command').choices
+    assert set(commands) == {argv[0] for argv in examples}, 'a command without an example'
+    assert EXAMPLES in _cli('--help').stdout
 
 
 def test_one_default_seed_and_a_rig_seed_of_its_own() -> None:

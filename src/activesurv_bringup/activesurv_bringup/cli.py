@@ -4,29 +4,8 @@ Every argument is checked (:mod:`activesurv_bringup.arguments`) before any long 
 modules that run a command (rclpy, OpenCV, matplotlib behind them) are imported in the function
 that needs them, so ``--help``, ``--version`` and a refused argument answer at once.
 
-Commands:
-
-    activesurv experiment --set {A,B} --system {static,medium,fast} --out DIR [--seed N]
-        [--mode {graph,lockstep}] [--trajectory PATH.csv] [--expect {parabolic,diagonal,PATH.csv}]
-        [--predictor {imm,ca}] [--rig RIG.yaml] [--calibration {CALDIR,nominal,truth}]
-        [--fault CAMERA:KIND[:MAGNITUDE] ...] [--kill NODE@T[:RESTART] ...]
-        [--rtf X] [--image-rate HZ] [--compose | --processes {containers,nodes}]
-        [--hosts {single,netns}]
-        [--dds-profile {large-images,PATH.xml}]
-    activesurv surveil --out DIR [--duration S] [--rtf X] [--seed N] [--arrival-interval S]
-        [--objects-at-once N]
-        [--demand-interval S] [--demand-at x=X ...] [--max-bag-duration S]
-        [--system {static,medium,fast}]
-    activesurv report RUN_DIR_OR_BAG
-    activesurv replay RUN_DIR_OR_BAG --out DIR [--rtf X]
-    activesurv demo [--out DIR] [--mode {graph,lockstep}] [--rig RIG.yaml]
-        [--calibration {CALDIR,nominal,truth}]
-    activesurv commission (--rig RIG.yaml | --live) --out CALDIR [--cameras cam1,cam2]
-    activesurv lab --rig RIG.yaml --out LABDIR [--cameras cam1,cam2]   # for commission --live
-    activesurv rig nominal --out RIG.yaml
-    activesurv rig perturb --in RIG.yaml --seed S --out RIG2.yaml
-    activesurv bag reindex BAG
-    activesurv stages {probe,move,emulate} ...
+Commands: :data:`EXAMPLES` (the epilog of ``activesurv --help``), a line per typical use;
+``activesurv COMMAND --help`` lists every option.
 """
 
 from __future__ import annotations
@@ -56,6 +35,37 @@ if TYPE_CHECKING:  # the checks and the runs load what they need: after --help
     from activesurv_bringup.arguments import Checked
     from activesurv_bringup.experiments.experiment import Experiment
 
+EXAMPLES = """\
+  simulate
+    activesurv demo --out runs/demo                          # the six experiments and the report
+    activesurv experiment --set A --system fast --out runs/a_fast --seed 2 --rtf 2
+    activesurv experiment --set B --system medium --out runs/b --mode lockstep
+    activesurv experiment --set C --system fast --out runs/c --foxglove
+    activesurv experiment --set A --system fast --out runs/f --fault cam2:dead --kill fusion@4:5
+    activesurv surveil --out runs/s --duration 120 --objects-at-once 2
+  look at a run
+    activesurv report runs/a_fast
+    activesurv replay runs/a_fast --out runs/a_fast_replay --foxglove
+    activesurv bag reindex runs/killed/bag
+  simulated rigs and their calibration
+    activesurv rig nominal --out rig.yaml
+    activesurv rig perturb --in rig.yaml --seed 3 --out rig3.yaml
+    activesurv commission --rig rig3.yaml --out cal3
+    activesurv experiment --set A --system fast --rig rig3.yaml --calibration cal3 --out runs/r3
+  a real rig (or the emulated lab)
+    activesurv lab --rig rig.yaml --out lab                  # until Ctrl-C; lab/hardware.yaml
+    activesurv lab --rig rig.yaml --out lab2 --controller table=/dev/ttyACM0
+    activesurv hardware template --out hw.yaml
+    activesurv hardware check hw.yaml
+    activesurv stages probe --protocol zaber --port /dev/ttyUSB0
+    activesurv commission --live --hardware hw.yaml --out cal --home
+    activesurv hardware measure-delay --hardware hw.yaml --calibration cal
+    activesurv experiment --hardware hw.yaml --calibration cal --set A --system fast --out runs/hw
+    activesurv surveil --hardware hw.yaml --calibration cal --out runs/hw_session
+    activesurv stop --hardware hw.yaml                       # e-stop; --release lowers it
+"""
+"""Typical invocations, by workflow; ``test/test_front_door.py`` parses every line with the
+real parser (the text after ``#`` is a comment), so none goes stale."""
 SYSTEMS = ('static', 'medium', 'fast')
 DEFAULT_SEED = 1
 DEFAULT_RIG_SEED = 1
@@ -83,7 +93,7 @@ def _build_parser() -> argparse.ArgumentParser:
         prog='activesurv',
         description='Active-vision multi-camera surveillance (ROS 2 Jazzy).',
         formatter_class=_Formatter,
-        epilog=__doc__.split('Commands:', 1)[1],
+        epilog='Commands (activesurv COMMAND --help for every option):\n\n' + EXAMPLES,
     )
     parser.add_argument('--version', action='version', version=f'activesurv {__version__}')
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')

@@ -20,6 +20,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
 
+from activesurv_common.pacing import Backoff
 from activesurv_common.ros import qos
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -33,6 +34,12 @@ PARAMS = (
     Param('image_rate', 15.0, 'most images per second per image topic (0: all)', minimum=0.0),
     Param('topics', list(DEFAULT_TOPICS), 'topics to serve (shell patterns)'),
     Param('discovery_period', 1.0, 's between looks for new topics', above=0.0),
+    Param(
+        'discovery_period_max',
+        4.0,
+        's between looks that find nothing (doubling; at least discovery_period)',
+        above=0.0,
+    ),
 )
 
 
@@ -54,12 +61,14 @@ class LiveViewNode(Node):
             server_listener=_listener(self.latched),
         )
         self.get_logger().info(f'Foxglove live view on ws://{v["host"]}:{self.server.port}')
-        self.create_timer(
-            float(v['discovery_period']),
-            self._discover,
-            clock=Clock(clock_type=ClockType.STEADY_TIME),
-        )
-        self.create_timer(0.2, self._replay_latched, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # A live view runs for hours beside runs and replays that come and go: while a look
+        # finds nothing new the period doubles, and a new topic brings it back (as the
+        # recorder's discovery does).
+        base, most = float(v['discovery_period']), float(v['discovery_period_max'])
+        self._backoff = Backoff(base, max(most, base))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._discovery = self.create_timer(base, self._look, clock=steady)
+        self.create_timer(0.2, self._replay_latched, clock=steady)
         self._discover()
 
     def _replay_latched(self) -> None:
@@ -68,9 +77,15 @@ class LiveViewNode(Node):
             for data in messages:
                 self.channels[topic].log(data, log_time=time.time_ns())
 
-    def _discover(self) -> None:
+    def _look(self) -> None:
+        found = self._discover()
+        self._discovery.timer_period_ns = int(1e9 * self._backoff.after(found > 0))
+
+    def _discover(self) -> int:
+        """Serve the wanted topics that have publishers now; returns how many are new."""
         import foxglove
 
+        new = 0
         for topic, types in self.get_topic_names_and_types():
             if topic in self.channels or not types or not self.filter.wanted(topic):
                 continue
@@ -93,6 +108,8 @@ class LiveViewNode(Node):
                 self.latched.latch(topic, qos.published_depth(topic) or 1)
             self.create_subscription(cls, topic, self._callback(topic, channel), profile, raw=True)
             self.get_logger().info(f'serving {topic} [{type_name}]')
+            new += 1
+        return new
 
     def _callback(self, topic: str, channel: Any) -> Any:
         image = topic.endswith('image_raw')

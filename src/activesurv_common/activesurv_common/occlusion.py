@@ -184,8 +184,8 @@ def _box_interval(a: Array, d: Array, low: Array, high: Array) -> tuple[Array, A
     s1 = np.full(len(a), np.inf)
     for k in range(3):
         dk = d[:, k]
-        parallel = np.abs(dk) < 1e-15
-        with np.errstate(divide='ignore', invalid='ignore'):
+        parallel = np.abs(dk) < 1e-15  # (a subnormal dk overflows the quotient: masked here)
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
             t_lo = (low[k] - a[:, k]) / dk
             t_hi = (high[k] - a[:, k]) / dk
         near = np.where(parallel, -np.inf, np.minimum(t_lo, t_hi))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -82,3 +84,15 @@ def test_blocked_agrees_with_dense_sampling_of_the_segment(
         assert got
     elif not grazing:
         assert not got
+
+
+def test_a_segment_along_a_box_face_with_a_subnormal_slope_warns_nothing() -> None:
+    """A direction component too small to divide by (subnormal) is the parallel case: no
+    overflow warning, and the same answer as the exactly parallel segment."""
+    box = [Box((0.0, 0.0, 0.0), (0.3, 0.2, 0.25))]
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        for x, expected in ((0.0, True), (0.5, False)):
+            tiny = blocked((x, -1.0, 0.01), (x + 1e-310, 1.0, 0.01), box)
+            exact = blocked((x, -1.0, 0.01), (x, 1.0, 0.01), box)
+            assert bool(tiny[0]) is bool(exact[0]) is expected

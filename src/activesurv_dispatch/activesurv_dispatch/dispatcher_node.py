@@ -26,7 +26,7 @@ from visualization_msgs.msg import MarkerArray
 
 from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, local_topics, qos, topics
-from activesurv_common.ros.conversions import joint_vector, time_to_sec
+from activesurv_common.ros.conversions import joint_vector, sec_to_time, time_to_sec
 from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import Param, declare
@@ -188,7 +188,8 @@ class DispatcherNode(Node):
             values,
             diagnostics.WARN if down else diagnostics.OK,
         )
-        self._diag_pub.publish(diagnostics.array(self.get_clock().now().to_msg(), s))
+        # Stamped between /clock ticks too: a camera dropped or re-admitted says when.
+        self._diag_pub.publish(diagnostics.array(sec_to_time(self._now()), s))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -156,6 +156,10 @@ class DemandCollector:
         batch.answers[answer.camera_id] = answer
         return True
 
+    def deadlines(self) -> set[float]:
+        """The deadlines of the open demands (a caller's timers decide them then)."""
+        return {b.deadline for b in self._open.values() if math.isfinite(b.deadline)}
+
     def pop_ready(self, now: float) -> list[DemandBatch]:
         """Remove and return the demands that are complete or past their deadline, oldest first."""
         ready = [b for b in self._open.values() if b.complete() or now >= b.deadline]

@@ -32,6 +32,7 @@ from rclpy.parameter import Parameter
 from activesurv_common.ros import diagnostics, qos, ready, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.fine_clock import FineClock
+from activesurv_common.ros.instants import InstantTimers
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_fusion.collector import DemandBatch, DemandCollector, resolve
@@ -79,6 +80,9 @@ class FusionNode(Node):
         observations = topics.MARKER_OBSERVATIONS
         obs_qos = qos.EVENTS_LATCHED
         self.create_subscription(MarkerObservation, observations, self._on_observation, obs_qos)
+        # A demand a camera never answers is decided at its deadline: on the clock owner's
+        # mapping (between /clock ticks), else at the next tick of this timer.
+        self._deadlines = InstantTimers(self)
         self.create_timer(0.05, self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
         if bool(self.get_parameter('announce_ready').value):  # simulated time waits for it
@@ -92,8 +96,12 @@ class FusionNode(Node):
                 self._collector.set_timeout(float(p.value))
         return SetParametersResult(successful=True)
 
-    def _now(self) -> float:
-        return float(self.get_clock().now().nanoseconds) * 1e-9
+    def _now(self) -> float:  # between /clock ticks too
+        return self._fine.now()
+
+    def _arm(self) -> None:
+        for t in self._collector.deadlines():
+            self._deadlines.at(t, self._on_tick, exact=False)  # once per instant (or none)
 
     # -- callbacks: convert, call the core, publish -----------------------------------------
     def _on_request(self, msg: CaptureRequest) -> None:
@@ -103,6 +111,7 @@ class FusionNode(Node):
             return
         if not self._collector.request(index, demand_time, cameras, self._now(), prior):
             self._counts['requests_after_answer'] += 1
+        self._arm()
 
     def _on_observation(self, msg: MarkerObservation) -> None:
         started = time.thread_time()  # fusion's compute on the budget: CPU, not waiting
@@ -110,6 +119,7 @@ class FusionNode(Node):
         stamp = time_to_sec(msg.header.stamp)
         self._collector.observe(int(msg.demand_index), answer, self._now(), stamp)
         self._publish_ready(self._collector.pop_ready(self._now()), started)
+        self._arm()
 
     def _on_tick(self) -> None:
         self._publish_ready(self._collector.pop_ready(self._now()))

@@ -89,3 +89,59 @@ def test_invalid_parameters_are_rejected_with_a_reason(fusion_node: FusionNode) 
     assert not results[0].successful
     assert 'collect_timeout' in results[0].reason or 'range' in results[0].reason.lower()
     assert fusion_node.set_parameters([Parameter('collect_timeout', value=1.5)])[0].successful
+
+
+def test_a_demand_a_camera_never_answers_is_decided_at_its_deadline_without_clock_ticks(
+    spin_until: Callable[..., bool], rclpy_context: Any
+) -> None:
+    """On simulated time, the deadline is kept on the clock owner's mapping: the demand is
+    answered at its deadline though ``/clock`` does not tick (a graph's table ticks it every
+    0.4 s only), not at the next tick."""
+    import time
+
+    from std_msgs.msg import Float64MultiArray
+
+    from activesurv_interfaces.msg import CaptureRequest, MarkerObservation, TargetEstimate
+
+    timeout = 0.3
+    node = FusionNode(
+        parameter_overrides=[
+            Parameter('collect_timeout', value=timeout),
+            Parameter('use_sim_time', value=True),
+        ]
+    )
+    peer = rclpy_context.create_node('fusion_deadline_peer')
+    got: list[tuple[float, TargetEstimate]] = []
+    try:
+        origin = peer.create_publisher(Float64MultiArray, topics.CLOCK_ORIGIN, qos.LATCHED)
+        wall0 = time.monotonic() - 10.0  # simulated time 10 s now, on this host's clock
+        origin.publish(Float64MultiArray(data=[wall0, 1.0, 0.0]))
+        req_pub = peer.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS_LATCHED)
+        obs_pub = peer.create_publisher(
+            MarkerObservation, topics.MARKER_OBSERVATIONS, qos.EVENTS_LATCHED
+        )
+        peer.create_subscription(
+            TargetEstimate, topics.TARGET_ESTIMATE, lambda m: got.append((time.monotonic(), m)), 10
+        )
+        assert spin_until(
+            [node, peer],
+            lambda: req_pub.get_subscription_count() > 0
+            and obs_pub.get_subscription_count() > 0
+            and node._deadlines.ready,
+        )
+        instant = time.monotonic() - wall0 + 0.2  # simulated
+        req = CaptureRequest(demand_index=3, camera_ids=['cam1', 'cam2'])
+        req.demand_instant.sec, req.demand_instant.nanosec = int(instant), int(instant % 1 * 1e9)
+        req_pub.publish(req)
+        obs = _observation('cam1', 3, 0.2)
+        obs.header.stamp = req.demand_instant
+        obs_pub.publish(obs)
+        assert spin_until([node, peer], lambda: bool(got), timeout=5.0)
+        when, est = got[0]
+        assert est.demand_index == 3
+        assert list(est.cameras_missing) == ['cam2']
+        late = (when - wall0) - (instant + timeout)  # after the deadline, simulated = wall here
+        assert -0.01 < late < 0.15, late
+    finally:
+        peer.destroy_node()
+        node.destroy_node()

@@ -12,7 +12,9 @@ Parameters: see ``config/fusion.yaml``.
 
 Requests and observations are subscribed transient-local (their publishers keep the last 50):
 a fusion node restarted after a crash receives those of the recent demands and answers the ones
-its predecessor left open. With the ``journal`` parameter (a file; the graph runs set it) the
+its predecessor left open. A demand is answered when every camera asked has, or at its deadline
+(``collect_timeout`` past the instant), kept between ``/clock`` ticks on the clock owner's
+mapping. With the ``journal`` parameter (a file; the graph runs set it) the
 answered demand indices survive the crash, so no demand is answered twice. On SIGINT/SIGTERM
 it answers every open demand before it stops.
 """

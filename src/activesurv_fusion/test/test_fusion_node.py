@@ -125,9 +125,11 @@ def test_a_demand_a_camera_never_answers_is_decided_at_its_deadline_without_cloc
         )
         assert spin_until(
             [node, peer],
-            lambda: req_pub.get_subscription_count() > 0
-            and obs_pub.get_subscription_count() > 0
-            and node._deadlines.ready,
+            lambda: (
+                req_pub.get_subscription_count() > 0
+                and obs_pub.get_subscription_count() > 0
+                and node._deadlines.ready
+            ),
         )
         instant = time.monotonic() - wall0 + 0.2  # simulated
         req = CaptureRequest(demand_index=3, camera_ids=['cam1', 'cam2'])

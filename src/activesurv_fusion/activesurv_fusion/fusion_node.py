@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from functools import partial
 from typing import Any
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
@@ -102,8 +103,11 @@ class FusionNode(Node):
         return self._fine.now()
 
     def _arm(self) -> None:
-        for t in self._collector.deadlines():
-            self._deadlines.at(t, self._on_tick, exact=False)  # once per instant (or none)
+        for t in self._collector.deadlines():  # a timer per deadline (none without a mapping)
+            self._deadlines.at(t, partial(self._on_deadline, t), exact=False)
+
+    def _on_deadline(self, t: float) -> None:  # the timer's own instant: never a hair before it
+        self._publish_ready(self._collector.pop_ready(max(self._now(), t)))
 
     # -- callbacks: convert, call the core, publish -----------------------------------------
     def _on_request(self, msg: CaptureRequest) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -22,7 +23,7 @@ from typing import Any
 
 import yaml
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Empty, String
+from std_msgs.msg import Empty, Float64MultiArray, String
 
 from activesurv_bringup.errors import ConfigError, NodeDiedError
 from activesurv_bringup.experiments.experiment import Experiment
@@ -388,11 +389,16 @@ class RunMonitor(Observer):
         self.heard: dict[str, set[tuple[int, str]]] = {}
         self._estimate_topic = ''
         self.ready: set[str] = set()  # nodes whose inputs are matched (activesurv/ready)
+        self._origin: tuple[float, float] | None = None  # the xy table's (wall0, rate)
 
     def on_start(self) -> None:
         node = self.node
         node.create_subscription(String, topics.READY, self._on_ready, qos.LATCHED)
         node.create_subscription(Clock, topics.CLOCK, self._on_clock, qos.CLOCK_SUBSCRIBER)
+        # Chaos and the end of a run act on simulated time: the table's mapping, not the ticks.
+        node.create_subscription(
+            Float64MultiArray, topics.CLOCK_ORIGIN, self._on_origin, qos.LATCHED
+        )
         node.create_subscription(String, topics.RECORDER_STATUS, self._on_recorder, 10)
         # Per-demand events heard here, by resolved topic name: the run stops only once the
         # recorder has as many of each (a reliable reader holds every message after a lost one
@@ -435,9 +441,16 @@ class RunMonitor(Observer):
         out = {t: len(k) - self.recorded.get(t, 0) for t, k in self.heard.items()}
         return {t: n for t, n in out.items() if n > 0}
 
+    def _on_origin(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) >= 2 and all(math.isfinite(v) for v in msg.data[:2]) and msg.data[1] > 0:
+            self._origin = (float(msg.data[0]), float(msg.data[1]))
+
     def on_spin(self) -> None:
         if self.time_origin is not None:
             self.sim_time = time.time() - self.time_origin
+        elif self._origin is not None:  # between /clock ticks (0.4 s apart): the owner's mapping
+            wall0, rate = self._origin
+            self.sim_time = max(self.sim_time, (time.monotonic() - wall0) * rate)
 
     def missing_nodes(self) -> set[str]:
         return self.missing(self.expected_nodes)

@@ -14,8 +14,10 @@ from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 from activesurv_common.object_geometry import ObjectGeometry
+from activesurv_common.ros import topics
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.board import BoardFixture
+from activesurv_sim.errors import SimError
 from activesurv_sim.render import Scene, SensorNoise
 from activesurv_sim.rig import load_rig
 from activesurv_sim.sim_camera import SimulatedCamera
@@ -107,6 +109,25 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
         rig.obstacles if rig is not None else (),
         optics,
     )
+
+
+def object_topic(p: Mapping[str, Any]) -> str:
+    """The object states a simulated camera with parameters ``p`` subscribes to: every state
+    (``object_state``), or, with ``instant_states``, those around requested instants
+    (``sim/instant_object_state``, :mod:`activesurv_sim.instant_window`).
+
+    Raises:
+        SimError: for ``instant_states`` with a free-running stream or previews, which render
+            at every state.
+    """
+    if not bool(p.get('instant_states', False)):
+        return topics.OBJECT_STATE
+    if float(p.get('frame_rate', 0.0)) > 0.0 or float(p.get('preview_rate', 0.0)) > 0.0:
+        raise SimError(
+            'instant_states is for a camera imaging on requests only: it needs '
+            'frame_rate and preview_rate 0'
+        )
+    return topics.INSTANT_OBJECT_STATE
 
 
 def published_model(p: Mapping[str, Any], sim: SimulatedCamera) -> CameraModel:

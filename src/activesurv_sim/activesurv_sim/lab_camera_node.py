@@ -59,7 +59,8 @@ LAB_PARAMS = (
     Param('software_trigger', False, 'expose on ~/trigger (std_srvs/Trigger), not free-running'),
 )
 OWN_CLOCK = ('frame_phase', 'own_trigger', 'remote_delay')  # own clock; no imager beside it
-CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name not in OWN_CLOCK)
+NOT_LAB = (*OWN_CLOCK, 'instant_states')  # a lab camera free-runs on the table's reports
+CAMERA_PARAMS = tuple(q for q in SIM_CAMERA_PARAMS if q.name not in NOT_LAB)
 PARAMS = CAMERA_PARAMS + LAB_PARAMS
 # Exposures a late timer still makes (a demand instant's burst of work on the host); a host
 # that cannot render the rate at all sheds the older ones (``lost``), not every later frame.

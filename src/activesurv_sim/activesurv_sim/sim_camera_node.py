@@ -1,7 +1,8 @@
 """The ``sim_camera`` node: a simulated camera that renders real pixels of the object.
 
 Subscribes:
-    object_state (activesurv_interfaces/ObjectState): the object's ground truth (xy table).
+    object_state (activesurv_interfaces/ObjectState): the object's ground truth (xy table); with
+        ``instant_states``, sim/instant_object_state: its states around requested instants.
     <camera_id>/stage/joint_states (sensor_msgs/JointState): its stage, unless static.
     capture_request (activesurv_interfaces/CaptureRequest): triggers a frame exposed exactly at
         the demand instant (like a hardware trigger armed ahead of time).
@@ -41,7 +42,7 @@ from activesurv_common.ros.deferred import Deferred
 from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
-from activesurv_sim.conversions import published_model, simulated_camera
+from activesurv_sim.conversions import object_topic, published_model, simulated_camera
 from activesurv_sim.errors import SimError
 from activesurv_sim.ros.ahead import AheadFrames
 from activesurv_sim.ros.frame_messages import FrameMessages
@@ -56,14 +57,12 @@ class SimCameraNode(Node):
         declare_mount_parameters(self)
         g = self.get_parameter
         p = {name: g(name).value for name in MOUNT_PARAMETERS}
+        v = {q.name: g(q.name).value for q in PARAMS}
         self.camera_id = str(g('camera_id').value)
-        self.sim = simulated_camera(
-            {q.name: g(q.name).value for q in PARAMS},
-            mount_from_parameters(self.camera_id, p),
-        )
+        self.sim = simulated_camera(v, mount_from_parameters(self.camera_id, p))
         self.sim.warm_up()
         self.frame_id = f'{self.camera_id}_optical_frame'  # REP 103, on /tf (frames node)
-        model = published_model({q.name: g(q.name).value for q in PARAMS}, self.sim)
+        model = published_model(v, self.sim)
         self.messages = FrameMessages(model, self.frame_id)
         # Its imager in the same container images a frame before the frame goes over DDS.
         image = topics.image(self.camera_id)
@@ -74,8 +73,10 @@ class SimCameraNode(Node):
         if str(g('payload').value) == 'board':  # commissioning: the table's stage carries it
             table = topics.joint_states(TABLE_ID)
             self.create_subscription(JointState, table, self._on_table, qos.STATE)
-        else:
-            self.create_subscription(ObjectState, topics.OBJECT_STATE, self._on_object, qos.SENSOR)
+        else:  # every state, or those around its instants (reliable then: each one counts)
+            topic = object_topic(v)
+            profile = qos.SENSOR if topic == topics.OBJECT_STATE else qos.EVENTS
+            self.create_subscription(ObjectState, topic, self._on_object, profile)
         if self.sim.joint_names:
             states, cb = topics.joint_states(self.camera_id), self._on_joints  # in process
             local_topics.subscription(self, JointState, states, cb, qos.SENSOR, only_local=True)

@@ -38,6 +38,12 @@ PARAMS = (
         'Hz of a free-running preview on <cam>/preview/image_raw for viewers (not imaged)',
         minimum=0.0,
     ),
+    Param(
+        'instant_states',
+        False,
+        "the table's states around requested instants only (sim/instant_object_state), not "
+        'every object_state: for a camera imaging on requests (frame_rate, preview_rate 0)',
+    ),
     Param('trigger_delay', 0.0, 'min s from a demand instant to its frame', minimum=0.0),
     Param('state_hold', 0.2, 's a state may be extrapolated', minimum=0.0),
     Param('seed', 0, 'image noise seed'),

@@ -4,6 +4,9 @@ Publishes:
     object_state (activesurv_interfaces/ObjectState): ground truth (top and side markers), for
         the simulated cameras and for evaluation; at ``publish_rate`` (simulated Hz), with a
         ``publish_phase`` on the grid ``phase + n / rate`` (the timer runs twice as fast).
+    sim/instant_object_state (ObjectState): with ``demand_states``, the states stamped within
+        two periods before and one after each requested instant, for the cameras that image
+        on requests only (:mod:`activesurv_sim.instant_window`).
     /clock (rosgraph_msgs/Clock) when ``publish_clock`` is true: simulated time starts at 0 and
         runs ``real_time_factor`` times as fast as the wall clock (slower when below 1).
 Subscribes:
@@ -60,8 +63,8 @@ class XYTableNode(Node):
         self.frame_id = str(g('frame_id').value)
         self._wall0: float | None = None  # simulated time starts when everyone listens
         self._created = time.monotonic()
-        wait = (int(g('wait_for_subscribers').value), int(g('wait_for_clock_subscribers').value))
-        self._wait_for = dict(zip(('object_state', '/clock'), wait, strict=True))
+        wait = [int(g(f'wait_for_{n}subscribers').value) for n in ('', 'clock_', 'instant_')]
+        self._wait_for = dict(zip(('object_state', '/clock', 'instants'), wait, strict=True))
         self._wait_timeout = float(g('wait_timeout').value)
         # Started with the graph, time held until the orchestrator has every node up.
         self._held = bool(g('hold_until_released').value)
@@ -91,11 +94,17 @@ class XYTableNode(Node):
             self._instant_ticks,
             float(g('instant_state_delay').value),
         )
+        self._relay_pub: Any = None
+        self._clock_period = float(g('clock_period').value)
+        self._period = 1.0 / float(g('publish_rate').value)
         if bool(g('demand_states').value):
             cb = self.instants.on_request
             self.create_subscription(CaptureRequest, topics.CAPTURE_REQUEST, cb, qos.EVENTS)
-        self._clock_period = float(g('clock_period').value)
-        self._period = 1.0 / float(g('publish_rate').value)
+            # Two states before an instant, its own and one after (the grid is half a period
+            # off the instants'): the states a camera imaging on requests reads.
+            relay = self.create_publisher(ObjectStateMsg, topics.INSTANT_OBJECT_STATE, qos.EVENTS)
+            self.instants.relay_to(relay, 2.0 * self._period, self._period)
+            self._relay_pub = relay
         phase = self._phase = float(g('publish_phase').value)
         self._grid = PhaseLock(1.0 / self._period, phase) if phase else None
         step = self._period / (2.0 if self._grid else 1.0)  # on a grid: a tick near each point
@@ -126,6 +135,8 @@ class XYTableNode(Node):
         if self._held:
             return False
         heard = {'object_state': self._pub.get_subscription_count()}
+        if self._relay_pub is not None:
+            heard['instants'] = self._relay_pub.get_subscription_count()
         if self._clock_pub is not None:
             heard['/clock'] = self._clock_pub.get_subscription_count()
         short = start_shortfall(heard, self._wait_for)
@@ -158,8 +169,10 @@ class XYTableNode(Node):
 
     def _publish_at(self, t: float, states: bool = True, tick: bool = True) -> None:
         stamp = sec_to_time(t)  # states, then the tick that wakes all (docs/performance.md)
-        for msg in self._states(t, stamp) if states else []:
+        msgs = self._states(t, stamp) if states else []
+        for msg in msgs:
             self._pub.publish(msg)
+        self.instants.published(t, msgs)
         if tick and self._clock_pub is not None and t > self._last_clock:
             self._clock_pub.publish(Clock(clock=stamp))  # simulated time never runs back
             self._last_clock = t

@@ -28,6 +28,12 @@ PARAMS = (
     Param('frame_id', 'world', 'frame of object_state'),
     Param('wait_for_subscribers', 0, 'hold time at 0 until object_state has this many', minimum=0),
     Param('wait_for_clock_subscribers', 0, 'and until /clock has this many', minimum=0),
+    Param(
+        'wait_for_instant_subscribers',
+        0,
+        'and until sim/instant_object_state has this many (with demand_states)',
+        minimum=0,
+    ),
     Param('wait_timeout', 30.0, 's to wait for them at most', minimum=0.0),
     Param('hold_until_released', False, 'and until /sim/time_release (the orchestrator)'),
     Param('stream_seed', 0, "stream: seed of the objects' paths"),

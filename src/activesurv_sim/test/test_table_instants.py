@@ -137,3 +137,44 @@ def test_two_instants_close_together_keep_their_order(
     finally:
         table.destroy_node()
         peer.destroy_node()
+
+
+def test_the_states_around_a_requested_instant_are_relayed_and_no_others(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """``sim/instant_object_state``: two grid states before the instant, its own, one after,
+    each once; a request for an instant whose window has begun gets its first states again."""
+    from activesurv_interfaces.msg import ObjectState
+
+    table = _table(0.0)
+    peer = rclpy_context.create_node('table_instants_relay_peer')
+    relayed: list[float] = []
+    try:
+        every = _stamps_heard(peer)
+        peer.create_subscription(
+            ObjectState,
+            topics.INSTANT_OBJECT_STATE,
+            lambda m: relayed.append(_stamp(m)),
+            qos.EVENTS,
+        )
+        request = _requester(table, peer, spin_until)
+        matched = lambda: table._relay_pub.get_subscription_count() >= 1  # noqa: E731
+        assert spin_until([table, peer], matched, timeout=10.0)
+        t1 = math.ceil((table.sim_time() + 0.5) * 10.0) / 10.0
+        request(t1)
+        assert spin_until([table, peer], lambda: any(s > t1 + 0.01 for s in relayed), 10.0)
+        # The second is asked when its window has begun: the state 0.15 s before it has gone.
+        assert spin_until([table, peer], lambda: table.sim_time() > t1 + 0.37, 10.0)
+        t2 = round(t1 + 0.5, 6)
+        request(t2)
+        assert spin_until([table, peer], lambda: any(s > t2 + 0.01 for s in relayed), 10.0)
+        want = [t1 - 0.15, t1 - 0.05, t1, t1 + 0.05, t2 - 0.15, t2 - 0.05, t2, t2 + 0.05]
+        assert len(relayed) == len(want), f'relayed {relayed}'
+        assert all(abs(a - b) < 0.02 for a, b in zip(sorted(relayed), want, strict=True)), (
+            f'relayed {sorted(relayed)}, want {want}'
+        )
+        assert len(every) > len(relayed) + 5  # object_state keeps every state
+        assert all(any(abs(s - r) < 1e-9 for s in every) for r in relayed)  # the same states
+    finally:
+        table.destroy_node()
+        peer.destroy_node()

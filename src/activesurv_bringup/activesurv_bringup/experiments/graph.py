@@ -154,6 +154,7 @@ def _table_parameters(
     specs: Sequence[NodeSpec],
 ) -> dict[str, Any]:
     """The simulated xy table's parameters in a graph run (``specs``: the other nodes)."""
+    cams = [s for s in specs if s.module.endswith('sim_camera_node')]
     return {
         **exp.table_config().to_parameters(),
         # /clock and object states at the overhead camera's rate and on its frames (half a
@@ -180,8 +181,10 @@ def _table_parameters(
         'clock_period': CLOCK_STATES / exp.overhead_rate,
         'real_time_factor': float(rtf),
         **truth,
-        # The recorder and every simulated camera must hear the object from the start.
-        'wait_for_subscribers': 1 + sum(1 for s in specs if s.module.endswith('sim_camera_node')),
+        # The recorder and every simulated camera must hear the object from the start: on
+        # every state, or (imaging on requests) on those around the instants.
+        'wait_for_subscribers': 1 + sum(1 for s in cams if not s.parameters.get('instant_states')),
+        'wait_for_instant_subscribers': sum(1 for s in cams if s.parameters.get('instant_states')),
     }
 
 
@@ -211,6 +214,9 @@ def camera_specs(
         'camera_id': cid,
         'frame_rate': 0.0,
         'preview_rate': float(preview_rate),
+        # Imaging on requests, it needs the object's states around its instants only, not
+        # every state (3 % of a run's CPU; docs/performance.md); previews need them all.
+        'instant_states': preview_rate <= 0.0,
         'seed': exp.seed * 100 + i,
         **mount_parameters(s),
         **truth,

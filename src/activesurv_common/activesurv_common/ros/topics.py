@@ -18,6 +18,8 @@ READY = 'activesurv/ready'
 # programmed path; a stage's motion when no new goal comes), so a simulated camera can render
 # ahead what it will expose. Real drivers publish nothing of the kind.
 PLANNED_OBJECT_STATE = 'sim/planned_object_state'
+# The table's states around requested instants only (a camera imaging on requests needs no more).
+INSTANT_OBJECT_STATE = 'sim/instant_object_state'
 # Prediction
 OVERHEAD_FIX = 'overhead/fix'
 OVERHEAD_FIXES = 'overhead/fixes'  # several objects: every top marker of a frame

@@ -10,6 +10,10 @@ system reads it, and on two cores its publication and its six readers took 1.5-2
 from the three cameras imaging the instant, and the table's own wake-up at the instant 0.2 ms
 more (docs/performance.md). Its stamp is the instant's all the same; a state of a later time,
 and a stop, send it at once, so states keep their order.
+
+With :meth:`TableInstants.relay_to` it also sends the states around each requested instant on
+``sim/instant_object_state``, for the simulated cameras that image only on requests
+(:mod:`activesurv_sim.instant_window`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from rclpy.timer import Timer
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
+from activesurv_sim.instant_window import InstantWindows
 
 
 class TableInstants:
@@ -64,9 +69,26 @@ class TableInstants:
         self._delay = 0.0 if tick else delay
         self.fired: dict[float, Timer | None] = {}  # instants scheduled (timer) or past (None)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._relay: tuple[Publisher, InstantWindows[ObjectStateMsg]] | None = None
+
+    def relay_to(self, publisher: Publisher, before: float, after: float) -> None:
+        """Send the states stamped within ``[t - before, t + after]`` of each requested
+        instant ``t`` on ``publisher`` too, as :meth:`published` is told of them."""
+        self._relay = (publisher, InstantWindows(before, after))
+
+    def published(self, t: float, states: list[ObjectStateMsg]) -> None:
+        """The table published ``states`` stamped ``t``: relayed if near a requested instant."""
+        if self._relay is not None and states:
+            pub, windows = self._relay
+            for state in windows.published(t, states):
+                pub.publish(state)
 
     def on_request(self, msg: CaptureRequest) -> None:
         t = time_to_sec(msg.demand_instant)
+        if self._relay is not None:  # its window's states gone out already, again (any time)
+            pub, windows = self._relay
+            for state in windows.requested(t):
+                pub.publish(state)
         if t in self.fired or not t > self._sim_time():
             return  # already scheduled (or a request replayed after its instant)
         for state in self._states(t):

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from activesurv_common.geometry import Transform, rot_z
+from activesurv_common.geometry import Transform
 from activesurv_common.mount import CameraMount
 
 WORLD = 'world'
@@ -71,15 +71,13 @@ def joint_edge(mount: CameraMount, q: ArrayLike) -> Edge:
     Raises:
         CalibrationError: for the wrong number of joints or non-finite values.
     """
-    # pose_from_joints validates q and is the one rule; the edge is its platform part.
-    mount.pose_from_joints(q)
-    v = np.asarray(q, dtype=np.float64).reshape(-1)
-    linear, yaw = (0.0, float(v[0])) if mount.linear_axis is None else (float(v[0]), float(v[1]))
+    # Checked as pose_from_joints checks them (the one rule); the edge is its platform part.
+    linear, yaw = mount.stage_positions(q)
     axis = mount.linear_axis if mount.linear_axis is not None else np.zeros(3)
     return Edge(
         base_frame(mount.camera_id),
         platform_frame(mount.camera_id),
-        Transform(rot_z(mount.yaw_offset + yaw), linear * axis),
+        Transform.about_z(mount.yaw_offset + yaw, linear * axis),
     )
 
 

@@ -7,6 +7,7 @@ A :class:`Transform` ``T_a_b`` maps points expressed in frame ``b`` into frame `
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -205,6 +206,24 @@ class Transform:
     @staticmethod
     def identity() -> Transform:
         return Transform(np.eye(3), np.zeros(3))
+
+    @staticmethod
+    def about_z(angle: float, t: ArrayLike) -> Transform:
+        """A rotation by ``angle`` (rad) about +z, then the translation ``t``, with its
+        quaternion known at once (a stage's frame on every joint state: no matrix to undo).
+
+        Raises:
+            GeometryError: for a non-finite angle or translation.
+        """
+        v = np.asarray(t, dtype=np.float64).reshape(-1)
+        if v.shape != (3,) or not all(map(math.isfinite, [angle, *v.tolist()])):
+            raise GeometryError(f'need a finite angle and 3-vector, got {angle!r}, {v.tolist()}')
+        c, s = math.cos(angle), math.sin(angle)
+        out = Transform(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), v)
+        s, c = math.sin(0.5 * angle), math.cos(0.5 * angle)
+        q = np.array([0.0, 0.0, -s, -c] if c < 0.0 else [0.0, 0.0, s, c])  # w >= 0
+        object.__setattr__(out, '_quaternion', q)
+        return out
 
     @staticmethod
     def from_rt(R: ArrayLike, t: ArrayLike) -> Transform:

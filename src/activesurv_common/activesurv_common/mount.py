@@ -108,15 +108,27 @@ class CameraMount:
         Raises:
             CalibrationError: for the wrong number of joints or non-finite values.
         """
+        return self.camera_pose(*self.stage_positions(q))
+
+    def stage_positions(self, q: ArrayLike) -> tuple[float, float]:
+        """(linear m, yaw rad) of joint positions ``q`` in stage order (linear 0 without a
+        linear stage), checked as :meth:`pose_from_joints` checks them.
+
+        Raises:
+            CalibrationError: for the wrong number of joints or non-finite values.
+        """
         v = np.asarray(q, dtype=np.float64).reshape(-1)
         if v.shape != (len(self.joint_names),):
             raise CalibrationError(
                 f'{self.camera_id}: expected {len(self.joint_names)} joint positions '
                 f'{self.joint_names}, got {v.size}'
             )
-        if self.linear_axis is None:
-            return self.camera_pose(0.0, float(v[0]))
-        return self.camera_pose(float(v[0]), float(v[1]))
+        linear, yaw = (
+            (0.0, float(v[0])) if self.linear_axis is None else (float(v[0]), float(v[1]))
+        )
+        if not (math.isfinite(linear) and math.isfinite(yaw)):
+            raise CalibrationError(f'{self.camera_id}: joint positions must be finite')
+        return linear, yaw
 
     def poses_from_joints(self, q: ArrayLike) -> tuple[Array, Array]:
         """:meth:`pose_from_joints` for many joint vectors at once (the dispatcher scores

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -104,3 +106,19 @@ def test_bearing_is_the_angle_between_the_normal_and_the_line_to_the_camera() ->
     b = bearings([[0.0, -2.0, 0.0], [1.0, 0.0, 0.0]], [0.0, -3.0, 0.0])  # any length of normal
     assert abs(b[0]) < 1e-12
     assert abs(b[1] - math.pi / 2) < 1e-12
+
+
+@pytest.mark.parametrize('angle', [0.0, 0.3, -0.3, 3.0, -3.0, math.pi, 4.0, -4.0, 7.0])
+def test_a_rotation_about_z_knows_the_quaternion_its_matrix_gives(angle: float) -> None:
+    T = Transform.about_z(angle, [0.1, -0.2, 0.3])
+    np.testing.assert_allclose(T.R, rot_z(angle), atol=1e-15)
+    np.testing.assert_allclose(T.quaternion(), quaternion_from_matrix(rot_z(angle)), atol=1e-12)
+    np.testing.assert_array_equal(T.t, [0.1, -0.2, 0.3])
+
+
+@pytest.mark.parametrize(
+    ('angle', 't'), [(math.nan, [0, 0, 0]), (0.1, [0, math.inf, 0]), (0.1, [0, 0])]
+)
+def test_a_rotation_about_z_refuses_bad_values(angle: float, t: list[float]) -> None:
+    with pytest.raises(GeometryError, match='finite angle and 3-vector'):
+        Transform.about_z(angle, t)

@@ -236,9 +236,12 @@ class SimulatedCamera:
         states, joints = self._planned.setdefault(t, ({}, [None, None, None]))
         if state is not None:
             states[slot] = np.asarray(state, dtype=np.float64).reshape(9)
-            # A lane may be planned before any state of it came (a camera hearing the states
-            # around its instants only): known from now on, its frame renders ahead.
-            self.slots.setdefault(slot, TimeSeries(9))
+            if slot not in self.slots:
+                # A lane planned before any state of it came (a camera hearing the states
+                # around its instants only): known from now on, and the frames rendered ahead
+                # without it are rendered again (the table plans every lane of an instant).
+                self.slots[slot] = TimeSeries(9)
+                self._ahead.clear()
             if slot == 0 and velocity is not None:
                 joints[1] = np.asarray(velocity, dtype=np.float64).reshape(3)
         if q is not None:

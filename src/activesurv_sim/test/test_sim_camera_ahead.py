@@ -111,3 +111,19 @@ def test_a_frame_rendered_ahead_goes_out_in_the_messages_built_with_it() -> None
     _, other = messages(T, frozen)
     assert messages.prepared == 1
     assert bytes(other.data) == frozen.tobytes()
+
+
+def test_a_lane_first_heard_of_in_a_plan_is_rendered_with_the_others() -> None:
+    """A camera hearing the states around its instants only may know no lane yet when the
+    plans of an instant come, one message per lane: the frame is rendered with every lane."""
+    sim = _camera()
+    parked = STATE + np.r_[[100.0, 100.0, 0.0] * 2, [0.0] * 3]  # the empty lane's place
+    sim.plan(T, STATE, [0.0], slot=0)
+    assert sim.render_ahead(T)  # with lane 0, the only one known so far
+    sim.plan(T, parked, slot=1)  # lane 1's plan: rendered again, with both
+    assert sim.render_ahead(T)
+    sim.joints.add(T, [0.0])
+    assert sim.release(T) is not None
+    sim.add_object(T, STATE, 0)
+    sim.add_object(T, parked, 1)
+    assert not sim.released_differs(T), 'the frame showed lane 0 alone'

@@ -32,6 +32,7 @@ import time
 from typing import Any
 
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Empty, Float64MultiArray
 
@@ -64,7 +65,8 @@ class XYTableNode(Node):
         self._wall0: float | None = None  # simulated time starts when everyone listens
         self._created = time.monotonic()
         wait = [int(g(f'wait_for_{n}subscribers').value) for n in ('', 'clock_', 'instant_')]
-        self._wait_for = dict(zip(('object_state', '/clock', 'instants'), wait, strict=True))
+        names = ('object_state', '/clock', topics.INSTANT_OBJECT_STATE)  # said when one is short
+        self._wait_for = dict(zip(names, wait, strict=True))
         self._wait_timeout = float(g('wait_timeout').value)
         # Started with the graph, time held until the orchestrator has every node up.
         self._held = bool(g('hold_until_released').value)
@@ -94,7 +96,7 @@ class XYTableNode(Node):
             self._instant_ticks,
             float(g('instant_state_delay').value),
         )
-        self._relay_pub: Any = None
+        self._relay_pub: Publisher | None = None
         self._clock_period = float(g('clock_period').value)
         self._period = 1.0 / float(g('publish_rate').value)
         if bool(g('demand_states').value):
@@ -136,7 +138,7 @@ class XYTableNode(Node):
             return False
         heard = {'object_state': self._pub.get_subscription_count()}
         if self._relay_pub is not None:
-            heard['instants'] = self._relay_pub.get_subscription_count()
+            heard[topics.INSTANT_OBJECT_STATE] = self._relay_pub.get_subscription_count()
         if self._clock_pub is not None:
             heard['/clock'] = self._clock_pub.get_subscription_count()
         short = start_shortfall(heard, self._wait_for)

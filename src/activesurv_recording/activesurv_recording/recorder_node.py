@@ -55,8 +55,7 @@ class RecorderNode(Node):
         super().__init__('recorder', **kwargs)
         declare(self, PARAMS)
         g = self.get_parameter
-        output = str(g('output').value)
-        if not output:
+        if not (output := str(g('output').value)):
             raise BagError('recorder needs the output parameter (a new bag directory)')
         split, self.latched = float(g('max_bag_duration').value), set[str]()
         size_mb, keep = float(g('max_bag_size').value), int(g('keep_bags').value)
@@ -68,12 +67,11 @@ class RecorderNode(Node):
         self.image_period = 1.0 / float(g('image_rate').value) if g('image_rate').value else 0.0
         self.exclude = set(g('exclude').value)
         self.namespace = str(g('strip_namespace').value)
-        self.subscribed: dict[str, str] = {}
-        self.last_image: dict[str, float] = {}
+        self.subscribed, self.last_image = dict[str, str](), dict[str, float]()
         self.counts: dict[str, int] = {}
         self.thin = set(g('thin_topics').value)
         self.sim_time = bool(g('use_sim_time').value)
-        self.clock = ClockEstimate()
+        self.clock, self.clock_heard = ClockEstimate(), False
         self._lock = threading.Lock()
         try:
             info = json.loads(str(g('run_info').value))
@@ -92,8 +90,7 @@ class RecorderNode(Node):
         self._discovery = self.create_timer(base, self._discover, clock=steady)
         self.exclude.add(STATUS_TOPIC)  # never our own status
         self._discover()
-        flush_period = float(g('flush_period').value)
-        if not flush_period > 0.0:
+        if not (flush_period := float(g('flush_period').value)) > 0.0:
             raise BagError(f'flush_period must be > 0 s, got {flush_period}')
         self.create_timer(flush_period, self._flush, clock=steady)
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, qos.STATUS)
@@ -116,7 +113,9 @@ class RecorderNode(Node):
     def _discover(self) -> None:
         n = len(self.subscribed)
         self._look()
-        self._discovery.timer_period_ns = int(1e9 * self._backoff.after(len(self.subscribed) > n))
+        # No backing off while simulated time waits (for every topic to be recorded: graph.py).
+        found = len(self.subscribed) > n or (self.sim_time and not self.clock_heard)
+        self._discovery.timer_period_ns = int(1e9 * self._backoff.after(found))
 
     def _look(self) -> None:
         for topic, types in self.get_topic_names_and_types():
@@ -155,6 +154,7 @@ class RecorderNode(Node):
                     return
                 if is_clock:
                     feed_clock(self.clock, topic, data)
+                    self.clock_heard |= topic == topics.CLOCK
                 now = self._stamp()
                 if thinned and self.image_period:
                     if now * 1e-9 - self.last_image.get(topic, -1e18) < self.image_period - 1e-6:

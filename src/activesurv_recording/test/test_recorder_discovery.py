@@ -42,3 +42,37 @@ def test_discovery_backs_off_and_still_finds_a_late_topic(
             rec.destroy_publisher(other)
         rec.close()
         rec.destroy_node()
+
+
+@pytest.mark.node
+def test_on_simulated_time_discovery_does_not_back_off_before_the_first_tick(
+    tmp_path: Path, spin_until: Callable[..., bool]
+) -> None:
+    """The graph is still coming up while simulated time waits: a topic that appears then is
+    found within the period (the orchestrator holds time until every topic is recorded)."""
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from activesurv_recording.recorder_node import RecorderNode
+
+    params = [
+        Parameter('output', value=str(tmp_path / 'bag')),
+        Parameter('use_sim_time', value=True),
+        Parameter('discovery_period', value=0.05),
+        Parameter('discovery_period_max', value=0.4),
+    ]
+    rec = RecorderNode(parameter_overrides=params)
+    pub: Any = None
+    try:
+        ends = time.monotonic() + 0.6  # time enough for 0.05 -> 0.4 s
+        spin_until([rec], lambda: time.monotonic() > ends, timeout=2.0)
+        assert rec._backoff.period == pytest.approx(0.05)
+        pub = rec.create_publisher(Clock, '/clock', 10)  # simulated time starts
+        assert spin_until([rec], lambda: '/clock' in rec.subscribed, timeout=5.0)
+        assert spin_until([rec], lambda: (pub.publish(Clock()), rec.clock_heard)[1], timeout=5.0)
+        assert spin_until([rec], lambda: rec._backoff.period == pytest.approx(0.4), timeout=5.0)
+    finally:
+        if pub is not None:
+            rec.destroy_publisher(pub)
+        rec.close()
+        rec.destroy_node()

@@ -16,7 +16,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -396,6 +396,7 @@ class RunMonitor(Observer):
         self._estimate_topic = ''
         self.ready: set[str] = set()  # nodes whose inputs are matched (activesurv/ready)
         self._origin: tuple[float, float] | None = None  # the xy table's (wall0, rate)
+        self._recording: set[str] = set()  # topics the recorder was seen subscribed to
 
     def on_start(self) -> None:
         node = self.node
@@ -460,6 +461,21 @@ class RunMonitor(Observer):
 
     def missing_nodes(self) -> set[str]:
         return self.missing(self.expected_nodes)
+
+    def unrecorded_topics(self, exclude: Collection[str], recorder: str = 'recorder') -> set[str]:
+        """Topics with a publisher that ``recorder`` does not subscribe to yet (``exclude``:
+        the topics it is told to leave out)."""
+        node, out = self.node, set[str]()
+        for topic, _ in node.get_topic_names_and_types():
+            if topic in exclude or topic in self._recording:
+                continue
+            if not node.get_publishers_info_by_topic(topic):
+                continue
+            if any(i.node_name == recorder for i in node.get_subscriptions_info_by_topic(topic)):
+                self._recording.add(topic)  # a subscription stays: not asked again
+            else:
+                out.add(topic)
+        return out
 
     def release_time(self) -> None:
         """Let a held simulated xy table start the time (latched: heard however late)."""
@@ -637,6 +653,7 @@ def _run(
             n_nodes = sum(len(s.members) or 1 for s in specs)
             if opts.time_origin is None:
                 _wait_until_matched(graph, monitor, first, progress)
+                _wait_until_recorded(graph, monitor, first, progress)
             if early:
                 progress(f'{n_nodes} nodes up in {len(specs)} processes; simulated time starts')
                 graph.raise_if_stopping()
@@ -705,6 +722,29 @@ def _wait_until_matched(
         monitor.spin(0.02)
     if (waited := time.monotonic() - started) >= 0.1:
         progress(f'{", ".join(sorted(expected))}: inputs matched {waited:.1f} s after the nodes')
+
+
+def _wait_until_recorded(
+    graph: GraphSession, monitor: RunMonitor, specs: Sequence[NodeSpec], progress: Progress
+) -> None:
+    """Hold simulated time until the recorder subscribes to every topic published so far: it
+    finds topics by polling the graph, and a camera whose container came up last had its
+    first two frames unrecorded (a replay of that bag then missed them)."""
+    recorder = next((s for s in specs if s.name == 'recorder'), None)
+    if recorder is None:
+        return
+    exclude = {*recorder.parameters.get('exclude', ()), monitor.node.resolve_topic_name(
+        topics.RECORDER_STATUS)}  # fmt: skip
+    started = time.monotonic()
+    while missing := monitor.unrecorded_topics(exclude):
+        graph.raise_if_stopping()
+        if time.monotonic() > started + READY_TIMEOUT:
+            late = ', '.join(sorted(missing))
+            progress(f'warning: the recorder does not record {late} after {READY_TIMEOUT:g} s')
+            return
+        monitor.spin(0.1)
+    if (waited := time.monotonic() - started) >= 0.1:
+        progress(f'the recorder records every topic {waited:.1f} s after the inputs matched')
 
 
 def _watch(

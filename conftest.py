@@ -69,6 +69,12 @@ HEAVY_LAST = (
     'test_hardware_lab.py', 'test_lab.py',
 )  # fmt: skip
 
+# Graph-tier modules the other worker runs once its own tests are done (a unit of their own,
+# last in its queue), beside the graph worker's runs: ten minutes of graph tests in one worker
+# left the other idle for seven. They and the heavy ones above never run at once
+# (:func:`_machine_lock`): the lab still has the machine to itself.
+SIDE_GRAPH = ('test_set_c.py', 'test_faults.py')
+
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Every test shows its tier: refused at collection otherwise. In a parallel session
@@ -97,18 +103,23 @@ def _one_graph_worker(items: list[pytest.Item]) -> None:
     it: xdist's own ``xdist_group`` rewrites node ids, which pytest 9 no longer lets it do."""
 
     def rank(item: pytest.Item) -> tuple[int, int]:
+        name = item.path.name
         if item.get_closest_marker('graph') is None:
             return (2, 0)
-        name = item.path.name
+        if name in SIDE_GRAPH:
+            return (3, 0)
         if name == COLCON_TEST:  # its build, started with the session, is done by then
             return (1, -1)
         return (1, HEAVY_LAST.index(name)) if name in HEAVY_LAST else (0, 0)
 
     items.sort(key=rank)  # stable: the order within a file is kept
-    groups = {
-        i.nodeid: 'graph' if i.get_closest_marker('graph') else i.nodeid.split('::')[0]
-        for i in items
-    }
+
+    def group(item: pytest.Item) -> str:
+        if item.get_closest_marker('graph') is None:
+            return item.nodeid.split('::')[0]
+        return 'graph_side' if item.path.name in SIDE_GRAPH else 'graph'
+
+    groups = {i.nodeid: group(i) for i in items}
     path = _groups_file()
     if path is None:
         return  # a session isolated by hand: the scheduler groups by module
@@ -120,6 +131,22 @@ def _one_graph_worker(items: list[pytest.Item]) -> None:
 def _groups_file() -> Path | None:
     session = os.environ.get('ACTIVESURV_TEST_SESSION_DIR')
     return Path(session) / 'xdist_groups.json' if session else None
+
+
+@pytest.fixture(scope='module', autouse=True)
+def _machine_lock(request: pytest.FixtureRequest) -> Iterator[None]:
+    """In a parallel session, a module of :data:`HEAVY_LAST` or :data:`SIDE_GRAPH` holds the
+    session's machine lock while it runs (its module fixtures too: autouse ones come first)."""
+    session = os.environ.get('ACTIVESURV_TEST_SESSION_DIR')
+    parallel = session and os.environ.get('PYTEST_XDIST_WORKER')
+    if not parallel or request.path.name not in (*HEAVY_LAST, *SIDE_GRAPH):
+        yield
+        return
+    import fcntl
+
+    with (Path(session) / 'machine.lock').open('a') as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes
+        yield
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -32,6 +32,7 @@ from activesurv_bringup.experiments.experiment import load_experiment
 from activesurv_bringup.experiments.lockstep import run_lockstep
 from activesurv_bringup.files import cache_dir
 from activesurv_bringup.rig.choice import choose
+from activesurv_bringup.rig.commission import run_commission
 
 ACTIVESURV = str(Path(sys.executable).parent / 'activesurv')
 SEEDS = [int(s) for s in os.environ.get('ACTIVESURV_BENCH_FIDELITY_SEEDS', '1,2,3').split(',')]
@@ -115,8 +116,12 @@ def _compare(runs: list[tuple[str, str, int, list[Any], dict[str, Any]]]) -> dic
     }
 
 
+def _say(text: str) -> None:
+    print(f'  {text}', flush=True)
+
+
 def run() -> dict[str, Any]:
-    choice = choose(None, None, 1, cache_dir(), lambda text: print(f'  {text}', flush=True))
+    choice = choose(None, None, 1, cache_dir(), _say, run_commission)
     lockstep = {
         (s, m, seed): run_lockstep(load_experiment(s, m, seed, rig=choice))
         for s, m in EXPERIMENTS

@@ -353,3 +353,22 @@ def test_no_function_does_several_jobs() -> None:
                     if n > FUNCTION_LINE_LIMIT:
                         long.append(f'{p.relative_to(SRC)}: {node.name} {n} lines')
     assert not long, '\n'.join(long)
+
+
+def test_reading_a_command_line_rig_or_hardware_file_loads_no_renderer_or_commissioning() -> None:
+    """An orchestrator reads its arguments, rig and hardware file before it starts a graph:
+    numba (the renderer's kernels, 0.3 s) and commissioning's modules (0.9 s) took 1.2 s of
+    every run's start so (docs/performance.md)."""
+    import subprocess
+    import sys
+
+    heavy = ('numba', 'scipy.optimize', 'activesurv_bringup.rig.commission')
+    code = (
+        'import sys\n'
+        'import activesurv_bringup.cli, activesurv_bringup.arguments\n'
+        'import activesurv_bringup.rig.choice, activesurv_hardware.hardware_file\n'
+        'import activesurv_sim.rig, activesurv_sim.board, activesurv_sim.optics\n'
+        f'print(sorted(m for m in {heavy!r} if m in sys.modules))\n'
+    )
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == '[]', out.stdout + out.stderr

@@ -15,8 +15,9 @@ from activesurv_imaging.ellipse import Ellipse
 from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
 from activesurv_imaging.observation import image_streak, observe_marker
 from activesurv_imaging.streak import _fit_shape, from_shape, shape_matrix, swept_contour, unswept
+from activesurv_sim.frame_optics import FrameOptics
 from activesurv_sim.optics import Optics, frame_optics
-from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise, look_at
+from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 
 CAM = replace(dynamic_camera('cam1'), exposure_time=0.01)
 

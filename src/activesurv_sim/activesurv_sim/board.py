@@ -11,10 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from activesurv_common.geometry import Transform
-from activesurv_sim.render import Plate, Scene
 
 _SIDE = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # z = +y (away)
 _TOP = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])  # z = -z (down)
@@ -45,18 +43,3 @@ class BoardFixture:
     def top_pose(self, x: float, y: float) -> Transform:
         """``T_world_board`` of the top board with the carriage at (x, y)."""
         return Transform(_TOP, np.array([x, y, self.top_height]))
-
-    def scene(self, xy: ArrayLike) -> Scene:
-        """Both boards with the carriage really at ``xy``."""
-        x, y = (float(v) for v in np.asarray(xy, dtype=np.float64).reshape(-1)[:2])
-        side, top = self.pose(x, y), self.top_pose(x, y)
-        return Scene(
-            (
-                Plate.checkerboard(
-                    side.t, side.R[:, 2], side.R[:, 0], self.squares, self.square_size
-                ),
-                Plate.checkerboard(
-                    top.t, top.R[:, 2], top.R[:, 0], self.top_squares, self.top_square_size
-                ),
-            )
-        )

@@ -17,6 +17,7 @@ from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.ros import topics
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_sim.board import BoardFixture
+from activesurv_sim.board_scene import board_scene
 from activesurv_sim.errors import SimError
 from activesurv_sim.render import Scene, SensorNoise
 from activesurv_sim.rig import load_rig
@@ -75,7 +76,7 @@ def simulated_camera(p: Mapping[str, Any], mount: CameraMount | Transform) -> Si
 
         def scene_of(state: NDArray[np.float64]) -> Scene:
             xy = state[:2] + (offset(float(state[0]), float(state[1])) if offset else 0.0)
-            return fixture.scene(xy)
+            return board_scene(fixture, xy)
 
     optics = None  # without a rig: a pinhole's frames
     if rig is not None:

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 from activesurv_common.camera_model import CameraModel, thin_lens_sigma
 from activesurv_common.geometry import Transform
 from activesurv_sim.errors import SimError
-from activesurv_sim.render import IDEAL_OPTICS, FrameOptics
+from activesurv_sim.frame_optics import IDEAL_OPTICS, FrameOptics
 
 REFERENCE_EXPOSURE = 0.010  # s: the exposure the renderer's grey levels stand for
 DYNAMIC_FOCAL_LENGTH = 0.025  # m (Table I)

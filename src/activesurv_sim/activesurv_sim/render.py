@@ -41,6 +41,7 @@ from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, as_vector3, cross3, unit
 from activesurv_sim import render_kernels as kernels
 from activesurv_sim.errors import RenderError
+from activesurv_sim.frame_optics import IDEAL_OPTICS, FrameOptics
 
 Array = NDArray[np.float64]
 
@@ -160,35 +161,6 @@ class SensorNoise:
     read_noise: float = 1.0
     supersample: int = 8
     antialias: str = 'coverage'
-
-
-@dataclass(frozen=True)
-class FrameOptics:
-    """What the lens and the shutter do to one frame (:mod:`activesurv_sim.optics`).
-
-    Attributes:
-        defocus_sigma: the depth of field's blur (px, per axis), in quadrature with the lens's
-            own ``SensorNoise.blur_sigma``.
-        streak: the marker's image displacement over the exposure (px, u and v): the frame is
-            smeared along it (motion blur).
-        gain: grey levels relative to the renderer's (exposure time / reference).
-        gamma: the response, ``grey = 255 (radiance / full scale)^(1 / gamma)``.
-    """
-
-    defocus_sigma: float = 0.0
-    streak: tuple[float, float] = (0.0, 0.0)
-    gain: float = 1.0
-    gamma: float = 1.0
-
-    def blur(self, base: float) -> float:
-        return math.hypot(base, self.defocus_sigma)
-
-    @property
-    def streak_length(self) -> float:
-        return math.hypot(*self.streak)
-
-
-IDEAL_OPTICS = FrameOptics()
 
 
 def _streaked(img: NDArray[np.float32], streak: tuple[float, float]) -> NDArray[np.float32]:

@@ -30,8 +30,9 @@ from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.occlusion import Box, Obstacle
 from activesurv_common.timeseries import TimeSeries
 from activesurv_sim.errors import RenderError
+from activesurv_sim.frame_optics import FrameOptics
 from activesurv_sim.optics import Optics, frame_optics
-from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise
+from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise
 
 EMPTY_LANE = np.array([100.0, 100.0, 0.08, 100.0, 99.97, 0.05, 0.0, -1.0, 0.0])  # parked
 TABLE_MAX_RATE = 1.0  # m/s: faster than any table moves an object (a jump: entering, parking)

@@ -10,9 +10,10 @@ import pytest
 
 from activesurv_common.camera_model import dynamic_camera
 from activesurv_common.mount import CameraMount
+from activesurv_sim.frame_optics import FrameOptics
 from activesurv_sim.lab_stats import LabCameraStats
 from activesurv_sim.optics import Optics, OpticsError, frame_optics
-from activesurv_sim.render import FrameOptics, Plate, Renderer, Scene, SensorNoise, look_at
+from activesurv_sim.render import Plate, Renderer, Scene, SensorNoise, look_at
 from activesurv_sim.rig import RigError, nominal_rig, rig_from_dict, rig_to_dict
 
 CAM = dynamic_camera('cam1')  # fx 5000 px

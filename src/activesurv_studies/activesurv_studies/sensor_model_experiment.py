@@ -43,9 +43,8 @@ from activesurv_common.sensor_model import (
     design_row,
 )
 from activesurv_imaging.marker_pose import MeasurementStatus, measure_marker
+from activesurv_sim.frame_optics import IDEAL_OPTICS, FrameOptics
 from activesurv_sim.render import (
-    IDEAL_OPTICS,
-    FrameOptics,
     Plate,
     Scene,
     SensorNoise,

@@ -44,8 +44,9 @@ from activesurv_fusion.config import FusionConfig
 from activesurv_imaging.capture import CaptureCore
 from activesurv_imaging.overhead import overhead_fix
 from activesurv_prediction.session import PredictionSession
+from activesurv_sim.frame_optics import IDEAL_OPTICS, FrameOptics
 from activesurv_sim.optics import Optics, frame_optics
-from activesurv_sim.render import IDEAL_OPTICS, FrameOptics, Renderer, SensorNoise
+from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.sim_camera import object_scene, obstacle_plates
 from activesurv_stages.errors import LimitError
 from activesurv_stages.kinematics import AxisSimulator

@@ -23,6 +23,7 @@ from activesurv_imaging.calibration import board_points, find_corners
 from activesurv_imaging.commissioning import BoardSighting, Station, order_like
 from activesurv_imaging.response import BoardReader
 from activesurv_sim.board import BoardFixture
+from activesurv_sim.board_scene import board_scene
 from activesurv_sim.optics import frame_optics
 from activesurv_sim.render import Renderer, SensorNoise
 from activesurv_sim.rig import Rig
@@ -137,7 +138,7 @@ def simulated_look(
     rng = np.random.default_rng(seed)
 
     def look(q: Array, x: float, y: float) -> Array | None:
-        scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
+        scene = board_scene(fixture, np.array([x, y]) + rig.table_offset(x, y))
         T = true_mount.pose_from_joints(q)
         lens = frame_optics(rc.camera, rc.lens, T, scene.plates[0].center)  # at rest: no streak
         return read(renderer.render(T, scene, noise, rng, lens))
@@ -154,7 +155,7 @@ def simulated_overhead_look(
     rng = np.random.default_rng(seed)
 
     def look(x: float, y: float) -> Array | None:
-        scene = fixture.scene(np.array([x, y]) + rig.table_offset(x, y))
+        scene = board_scene(fixture, np.array([x, y]) + rig.table_offset(x, y))
         T = rig.overhead_pose
         lens = frame_optics(rig.overhead, rig.overhead_lens, T, scene.plates[-1].center)
         image = renderer.render(T, scene, noise, rng, lens)

@@ -1,5 +1,8 @@
 """A run's rig and calibration from its command line, commissioning the rig first when no
-calibration is given (once per rig, cached next to the runs)."""
+calibration is given (once per rig, cached next to the runs). Commissioning is handed in
+(:data:`Commission`, :func:`activesurv_bringup.rig.commission.run_commission`): its modules
+(board views, the response fit, scipy.optimize) took 0.9 s of every run's start, and most runs
+use a calibration that exists."""
 
 from __future__ import annotations
 
@@ -7,9 +10,9 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from activesurv_bringup.errors import ConfigError
-from activesurv_bringup.rig.commission import run_commission
 from activesurv_bringup.rig.rigs import (
     CALIBRATIONS,
     RigChoice,
@@ -24,8 +27,13 @@ from activesurv_sim.rig import Rig
 # What commissioning a simulated rig takes on a two-core machine (measured: 4-6 min).
 COMMISSIONING_ESTIMATE = 'about 5 min on two cores'
 
+Commission = Callable[..., Any]
+"""Commissions a rig: ``commission(out, rig, progress=...)``, as ``run_commission``."""
 
-def commissioned(cache: Path, rig: Rig, progress: Callable[[str], None] = print) -> Path:
+
+def commissioned(
+    cache: Path, rig: Rig, commission: Commission, progress: Callable[[str], None] = print
+) -> Path:
     """The rig's calibration in ``cache``, commissioned first if there is none yet.
 
     A commissioning stopped by SIGINT leaves its partial work in ``<dir>.interrupted`` (never
@@ -42,7 +50,7 @@ def commissioned(cache: Path, rig: Rig, progress: Callable[[str], None] = print)
         'later runs reuse it)'
     )
     try:
-        run_commission(path, rig, progress=progress)
+        commission(path, rig, progress=progress)
     except KeyboardInterrupt:
         kept = path.with_name(f'{path.name}.interrupted-{int(time.time())}')
         if path.exists():
@@ -58,6 +66,7 @@ def choose(
     rig_seed: int,
     cache: Path | None = None,
     progress: Callable[[str], None] = print,
+    commission: Commission | None = None,
 ) -> RigChoice:
     """A run's rig and calibration from its command line (see the module docstring).
 
@@ -65,13 +74,14 @@ def choose(
         rig: a rig file, or None for the nominal rig perturbed with ``rig_seed``.
         calibration: ``truth``, ``nominal``, a calibration directory, or None: the rig
             commissioned once into ``cache/calibrations/`` (unless ``ACTIVESURV_CALIBRATION``).
+        commission: what commissions the rig when it has to be (``run_commission``).
     """
     the_rig, source = resolve_rig(rig, rig_seed)
     cal_choice = calibration or default_calibration()
     if cal_choice is None:
-        if cache is None:
+        if cache is None or commission is None:
             raise ConfigError('commissioning needs a directory for its calibration')
-        cal_choice = str(commissioned(cache, the_rig, progress))
+        cal_choice = str(commissioned(cache, the_rig, commission, progress))
     cal = with_lens_settings(resolve_calibration(cal_choice, the_rig), the_rig)
     label = cal_choice if cal_choice in CALIBRATIONS else str(Path(cal_choice).resolve())
     return RigChoice(the_rig, source, cal, label)

@@ -164,7 +164,7 @@ def test_fusion_result_to_estimate_and_pose() -> None:
 
 
 def test_stage_joint_state_and_sim_object_state() -> None:
-    from activesurv_sim.conversions import object_state_msg
+    from activesurv_sim.ros.table_messages import object_state_msg
     from activesurv_sim.xytable import ObjectState
     from activesurv_stages.conversions import joint_state
 

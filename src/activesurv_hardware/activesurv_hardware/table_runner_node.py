@@ -29,7 +29,7 @@ from activesurv_hardware.errors import HardwareError
 from activesurv_hardware.path_runner import PathRunner, StreamRunner, TruthFromController
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
 from activesurv_interfaces.msg import StageGoal
-from activesurv_sim.conversions import object_state_msg
+from activesurv_sim.ros.table_messages import object_state_msg
 from activesurv_sim.stream import PATH_KINDS, ObjectStream
 from activesurv_sim.xytable import named_path
 from activesurv_stages.errors import StageError

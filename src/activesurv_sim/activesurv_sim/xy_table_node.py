@@ -43,9 +43,9 @@ from activesurv_common.ros.node import run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest
 from activesurv_interfaces.msg import ObjectState as ObjectStateMsg
-from activesurv_sim.conversions import object_state_msg, table_states
 from activesurv_sim.errors import SimError
 from activesurv_sim.ros.table_instants import TableInstants
+from activesurv_sim.ros.table_messages import object_state_msg, table_states
 from activesurv_sim.stream import table_from_parameters
 from activesurv_sim.xy_table_params import PARAMS
 from activesurv_sim.xytable import XYTable, near_instant, start_shortfall

@@ -733,8 +733,8 @@ def _wait_until_recorded(
     recorder = next((s for s in specs if s.name == 'recorder'), None)
     if recorder is None:
         return
-    exclude = {*recorder.parameters.get('exclude', ()), monitor.node.resolve_topic_name(
-        topics.RECORDER_STATUS)}  # fmt: skip
+    exclude = set(recorder.parameters.get('exclude', ()))
+    exclude.add(monitor.node.resolve_topic_name(topics.RECORDER_STATUS))  # never its own
     started = time.monotonic()
     while missing := monitor.unrecorded_topics(exclude):
         graph.raise_if_stopping()

@@ -79,8 +79,10 @@ def choose(
     the_rig, source = resolve_rig(rig, rig_seed)
     cal_choice = calibration or default_calibration()
     if cal_choice is None:
-        if cache is None or commission is None:
+        if cache is None:
             raise ConfigError('commissioning needs a directory for its calibration')
+        if commission is None:
+            raise ConfigError('no calibration given, and this command does not commission')
         cal_choice = str(commissioned(cache, the_rig, commission, progress))
     cal = with_lens_settings(resolve_calibration(cal_choice, the_rig), the_rig)
     label = cal_choice if cal_choice in CALIBRATIONS else str(Path(cal_choice).resolve())

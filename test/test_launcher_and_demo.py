@@ -56,6 +56,18 @@ def test_launcher_stops_nodes_cleanly(tmp_path: Path) -> None:
     assert codes == {'/fusion': 0}  # SIGINT -> the node flushed and exited normally
 
 
+def test_a_stop_while_a_node_imports_ends_it_cleanly_once_started(tmp_path: Path) -> None:
+    # The launcher holds SIGINT in the child until the node's stop handlers are in place: a stop
+    # that comes while the node still imports rclpy and numpy is not Python's KeyboardInterrupt
+    # mid-import (exit status -2, what a busy CI host once saw) but a clean stop.
+    launcher = Launcher([NodeSpec('fusion', 'activesurv_fusion.fusion_node')], workdir=tmp_path)
+    launcher.start()
+    codes = launcher.stop()  # at once, long before the node has imported its modules
+    assert codes == {'/fusion': 0}
+    log = (tmp_path / 'fusion.log').read_text()
+    assert 'KeyboardInterrupt' not in log
+
+
 def test_a_ctrl_c_while_stopping_leaves_no_node_running(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

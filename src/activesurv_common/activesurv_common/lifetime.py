@@ -6,7 +6,12 @@ Two halves:
   asks the kernel to send the child SIGTERM when its parent dies (``PR_SET_PDEATHSIG``), so a
   SIGKILLed orchestrator still stops every node it started (a stage bridge then stops its
   axes, the recorder closes its bag). The signal survives ``exec`` of a non-setuid program, so
-  it also holds through ``ip netns exec``.
+  it also holds through ``ip netns exec``. It also blocks SIGINT, which stays pending until
+  the node has installed its own stop handlers (:class:`~activesurv_common.ros.node.StopRequest`
+  unblocks it): a Ctrl-C or a launcher's stop that comes while the node still imports its
+  modules then ends it cleanly once it has started, where Python's default handler would kill
+  it mid-import (exit status -2). SIGTERM is left as it was: the launcher's escalation and the
+  parent-death signal still end a node that hangs while it starts.
 * :class:`StopSignals` is the orchestrator's side: SIGINT, SIGTERM and SIGHUP (what Ctrl-C,
   ``systemd``, ``docker stop``, ``timeout`` and a closed terminal send) all ask for the same
   clean stop: open demands are answered and the bag is closed. A second signal while stopping
@@ -33,6 +38,10 @@ PARENT_ENV = 'ACTIVESURV_PARENT_PID'
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """The signals that ask a run to stop cleanly."""
 
+HELD_WHILE_STARTING = (signal.SIGINT,)
+"""The signals a node process started by our launcher holds (blocked, pending) until its stop
+handlers are in place."""
+
 _PR_SET_PDEATHSIG = 1
 
 
@@ -56,9 +65,11 @@ def set_parent_death_signal(sig: int = signal.SIGTERM) -> bool:
 
 
 def child_preexec(parent_pid: int, nice: int = 0) -> None:
-    """``preexec_fn`` of a node process: die with the parent, even if it is already gone;
-    ``nice``: lower its CPU priority by that much (background work)."""
+    """``preexec_fn`` of a node process: die with the parent, even if it is already gone; hold
+    SIGINT until the node can stop cleanly; ``nice``: lower its CPU priority by that much
+    (background work)."""
     set_parent_death_signal(signal.SIGTERM)
+    signal.pthread_sigmask(signal.SIG_BLOCK, HELD_WHILE_STARTING)  # survives exec
     if nice > 0:
         os.nice(nice)
     if os.getppid() != parent_pid:  # the parent died before the prctl above

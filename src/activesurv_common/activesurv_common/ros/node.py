@@ -84,12 +84,15 @@ class StopRequest:
     """Whether SIGINT, SIGTERM or SIGHUP has come since it was made (it installs their
     handlers): made before a node is built, a stop asked while the node is still starting
     (importing, compiling, reading its files) ends it cleanly once it has started, where
-    Python's default SIGINT would kill it mid-start."""
+    Python's default SIGINT would kill it mid-start. Before it is made, the SIGINT of a process
+    our launcher started is held (:func:`~activesurv_common.lifetime.child_preexec`)."""
 
     def __init__(self) -> None:
         self.requested = False
         for sig in STOP_SIGNALS:
             signal.signal(sig, self._on_signal)
+        # A SIGINT the launcher held while this process started is delivered now, to the handler.
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self.requested = True

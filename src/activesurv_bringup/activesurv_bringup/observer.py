@@ -45,6 +45,8 @@ from activesurv_recording.bagio import cdr_header
 FRAMES_KEPT = 60  # per camera: two seconds of a 30 Hz driver
 Positions = Sequence[float] | NDArray[np.float64]  # m or rad, per joint
 CAPTURE_LEAD = 0.15  # s from a capture request to its instant (the camera's notice)
+DRAIN_WAIT = 0.002  # s: spin_batched's last round, that finds nothing waiting
+DRAIN_ROUNDS = 10_000  # what one batch handles at most (the rest waits for the next)
 
 
 class Observer:
@@ -140,6 +142,25 @@ class Observer:
             self._spin_once(min(0.01 if self._paced else 0.05, left))
             self._pace()
             self.on_spin()
+
+    def spin_batched(self, seconds: float) -> None:
+        """Sleep ``seconds``, then handle what came meanwhile, all at once.
+
+        For a watcher that need not react at once (a run's monitor while the graph runs): it
+        wakes once a period instead of at every message, so at a demand instant, when every
+        camera publishes its observation, its callbacks do not take a core from the imagers and
+        fusion. A monitor that paces triggers spins as usual."""
+        if self._paced:
+            self.spin(seconds)
+            return
+        time.sleep(seconds)
+        # Each round handles one waiting event; one that finds none waits out its timeout.
+        for _ in range(DRAIN_ROUNDS):
+            started = time.monotonic()
+            self._spin_once(DRAIN_WAIT)
+            if time.monotonic() - started >= 0.9 * DRAIN_WAIT:
+                break
+        self.on_spin()
 
     def on_spin(self) -> None:
         """Called after every callback round (a wall-clock run's time is kept here)."""

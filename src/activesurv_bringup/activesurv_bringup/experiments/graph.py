@@ -782,7 +782,7 @@ def _watch(
             assert isinstance(launcher, Launcher)
             _chaos(launcher, opts.kills, killed, restarted, by_name, monitor.sim_time, progress)
         graph.check()
-        monitor.spin(0.25)
+        monitor.spin_batched(0.25)  # not woken by every observation at the demand instants
         line = until.report(monitor)
         if line:
             progress(line)

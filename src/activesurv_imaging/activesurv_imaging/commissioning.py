@@ -274,6 +274,7 @@ def refine(
 
     x0 = np.r_[camera.fx, camera.fy, camera.cx, camera.cy, camera.dist[0], _mount_vector(mount)]
     scale = np.r_[10.0, 10.0, 1.0, 1.0, 0.01, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]
+
     def plain(x: Array) -> Array:
         return np.concatenate([r.ravel() for r in raw(x)])
 

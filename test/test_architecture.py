@@ -372,3 +372,22 @@ def test_reading_a_command_line_rig_or_hardware_file_loads_no_renderer_or_commis
     )
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == '[]', out.stdout + out.stderr
+
+
+def test_an_orchestrator_starts_a_graph_without_the_imaging_kernels() -> None:
+    """The experiment, its graph and a hardware run's graph write the imagers' parameters
+    (``imager_config``); the imaging itself (OpenCV, numba: 0.38 s of import) runs in the
+    camera containers only, and loading it in the orchestrator took a core from their start."""
+    import subprocess
+    import sys
+
+    heavy = ('numba', 'cv2', 'activesurv_imaging.capture')
+    code = (
+        'import sys\n'
+        'import activesurv_bringup.experiments.experiment\n'
+        'import activesurv_bringup.experiments.graph\n'
+        'import activesurv_bringup.experiments.hardware_graph\n'
+        f'print(sorted(m for m in {heavy!r} if m in sys.modules))\n'
+    )
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == '[]', out.stdout + out.stderr

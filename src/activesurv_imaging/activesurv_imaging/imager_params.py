@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from activesurv_common.ros.conversions import MOUNT_PARAMETERS
 from activesurv_common.ros.parameters import Param
-from activesurv_imaging.capture import TRIGGERS
+from activesurv_imaging.imager_config import TRIGGERS
 
 PARAMS = (
     Param('camera_id', 'cam1', 'camera this imager serves'),

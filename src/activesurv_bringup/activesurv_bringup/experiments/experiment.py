@@ -35,7 +35,7 @@ from activesurv_dispatch.planner import Demand
 from activesurv_dispatch.sensors import Setup, default_setup_path, load_setup, setup_to_dict
 from activesurv_dispatch.session import DispatcherConfig
 from activesurv_fusion.config import FusionConfig
-from activesurv_imaging.capture import ImagerConfig
+from activesurv_imaging.imager_config import ImagerConfig
 from activesurv_prediction.session import PredictorConfig
 from activesurv_recording.run_record import ExperimentRun, RigFacts, RunRecord
 from activesurv_sim.xytable import (

@@ -45,7 +45,7 @@ from activesurv_common.ros import qos, topics
 from activesurv_common.trigger import SourceKind, Trigger
 from activesurv_dispatch.sensors import setup_to_dict
 from activesurv_hardware.hardware_file import CameraEntry, Hardware
-from activesurv_imaging.capture import ImagerConfig
+from activesurv_imaging.imager_config import ImagerConfig
 from activesurv_interfaces.msg import StageGoal
 from activesurv_launch.launcher import NodeSpec
 from activesurv_recording.run_record import OnRig, RunRecord

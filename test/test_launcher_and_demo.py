@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 from pathlib import Path
@@ -67,23 +66,6 @@ def test_a_stop_while_a_node_imports_ends_it_cleanly_once_started(tmp_path: Path
     assert codes == {'/fusion': 0}
     log = (tmp_path / 'fusion.log').read_text()
     assert 'KeyboardInterrupt' not in log
-
-
-def test_a_background_node_is_lowered_against_the_other_nodes_too(tmp_path: Path) -> None:
-    # Each node has a session of its own, and with the kernel's autogroups (the default of most
-    # kernels) a session is a scheduling group of its own: the process's own nice then weighs
-    # only within it. The launcher lowers the session's nice as well.
-    autogroup = Path('/proc/self/autogroup')
-    if (
-        not autogroup.exists()
-        or Path('/proc/sys/kernel/sched_autogroup_enabled').read_text().strip() != '1'
-    ):
-        pytest.skip('this kernel has no autogroups')
-    spec = NodeSpec('fusion', 'activesurv_fusion.fusion_node', nice=7)
-    with Launcher([spec], workdir=tmp_path) as launcher:
-        pid = launcher.processes['/fusion'].process.pid
-        assert Path(f'/proc/{pid}/autogroup').read_text().split()[-1] == '7'
-        assert os.getpriority(os.PRIO_PROCESS, pid) - os.getpriority(os.PRIO_PROCESS, 0) == 7
 
 
 def test_a_ctrl_c_while_stopping_leaves_no_node_running(

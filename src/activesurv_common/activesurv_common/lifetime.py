@@ -64,33 +64,6 @@ def set_parent_death_signal(sig: int = signal.SIGTERM) -> bool:
         return False
 
 
-def set_session_nice(nice: int) -> bool:
-    """Lower the CPU weight of this process's session by ``nice`` (Linux autogroups).
-
-    With ``/proc/sys/kernel/sched_autogroup_enabled`` (the default of most kernels) the scheduler
-    puts each session in a group of its own and shares the CPU between the groups first: a
-    process's own nice then weighs only against the processes of its session. A node our
-    launcher starts has a session of its own (so a Ctrl-C in the terminal reaches the
-    orchestrator only), so its ``os.nice`` alone left it at full weight against every other
-    node; its session's nice (``/proc/self/autogroup``) is what lowers it. Raising a nice needs
-    no privilege.
-
-    Returns:
-        Whether the kernel took it (False without autogroups, e.g. in a container's cgroup,
-        where the processes' own nice values already apply).
-    """
-    try:
-        fd = os.open('/proc/self/autogroup', os.O_WRONLY)
-    except OSError:
-        return False
-    try:
-        return os.write(fd, str(int(nice)).encode()) > 0
-    except OSError:
-        return False
-    finally:
-        os.close(fd)
-
-
 def child_preexec(parent_pid: int, nice: int = 0) -> None:
     """``preexec_fn`` of a node process: die with the parent, even if it is already gone; hold
     SIGINT until the node can stop cleanly; ``nice``: lower its CPU priority by that much
@@ -98,8 +71,7 @@ def child_preexec(parent_pid: int, nice: int = 0) -> None:
     set_parent_death_signal(signal.SIGTERM)
     signal.pthread_sigmask(signal.SIG_BLOCK, HELD_WHILE_STARTING)  # survives exec
     if nice > 0:
-        os.nice(nice)
-        set_session_nice(nice)  # its own session: the process's nice alone does not weigh
+        os.nice(nice)  # within its own session only, where kernels group sessions (autogroups)
     if os.getppid() != parent_pid:  # the parent died before the prctl above
         os.kill(os.getpid(), signal.SIGTERM)
 

@@ -355,39 +355,43 @@ def test_no_function_does_several_jobs() -> None:
     assert not long, '\n'.join(long)
 
 
+def _loaded_by(modules: tuple[str, ...], heavy: tuple[str, ...]) -> list[str]:
+    """Which of ``heavy`` a fresh interpreter has loaded once it imported ``modules``."""
+    import json
+    import subprocess
+    import sys
+
+    found = f'sorted(m for m in {heavy!r} if m in sys.modules)'
+    code = f'import json, sys, {", ".join(modules)}\nprint(json.dumps({found}))'
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    return list(json.loads(out.stdout))
+
+
 def test_reading_a_command_line_rig_or_hardware_file_loads_no_renderer_or_commissioning() -> None:
     """An orchestrator reads its arguments, rig and hardware file before it starts a graph:
     numba (the renderer's kernels, 0.3 s) and commissioning's modules (0.9 s) took 1.2 s of
     every run's start so (docs/performance.md)."""
-    import subprocess
-    import sys
-
-    heavy = ('numba', 'scipy.optimize', 'activesurv_bringup.rig.commission')
-    code = (
-        'import sys\n'
-        'import activesurv_bringup.cli, activesurv_bringup.arguments\n'
-        'import activesurv_bringup.rig.choice, activesurv_hardware.hardware_file\n'
-        'import activesurv_sim.rig, activesurv_sim.board, activesurv_sim.optics\n'
-        f'print(sorted(m for m in {heavy!r} if m in sys.modules))\n'
+    readers = (
+        'activesurv_bringup.cli',
+        'activesurv_bringup.arguments',
+        'activesurv_bringup.rig.choice',
+        'activesurv_hardware.hardware_file',
+        'activesurv_sim.rig',
+        'activesurv_sim.board',
+        'activesurv_sim.optics',
     )
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == '[]', out.stdout + out.stderr
+    assert (
+        _loaded_by(readers, ('numba', 'scipy.optimize', 'activesurv_bringup.rig.commission')) == []
+    )
 
 
 def test_an_orchestrator_starts_a_graph_without_the_imaging_kernels() -> None:
     """The experiment, its graph and a hardware run's graph write the imagers' parameters
     (``imager_config``); the imaging itself (OpenCV, numba: 0.38 s of import) runs in the
     camera containers only, and loading it in the orchestrator took a core from their start."""
-    import subprocess
-    import sys
-
-    heavy = ('numba', 'cv2', 'activesurv_imaging.capture')
-    code = (
-        'import sys\n'
-        'import activesurv_bringup.experiments.experiment\n'
-        'import activesurv_bringup.experiments.graph\n'
-        'import activesurv_bringup.experiments.hardware_graph\n'
-        f'print(sorted(m for m in {heavy!r} if m in sys.modules))\n'
+    graphs = (
+        'activesurv_bringup.experiments.experiment',
+        'activesurv_bringup.experiments.graph',
+        'activesurv_bringup.experiments.hardware_graph',
     )
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == '[]', out.stdout + out.stderr
+    assert _loaded_by(graphs, ('numba', 'cv2', 'activesurv_imaging.capture')) == []

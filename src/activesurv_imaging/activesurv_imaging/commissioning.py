@@ -282,7 +282,8 @@ def refine(
     # A sighting whose corners scatter far more than the rest is not what the noise model
     # describes: left out, and the plain fit made again without it.
     if dropped := outlying_sightings(raw(x1)):
-        data = [d for i, d in enumerate(data) if i not in set(dropped)]
+        left_out = set(dropped)
+        data = [d for i, d in enumerate(data) if i not in left_out]
         x1 = fit(plain, x1)
     noise = NoiseModel.of(raw(x1))
 

@@ -33,3 +33,38 @@ def test_what_comes_while_the_monitor_sleeps_is_handled_in_one_batch(rclpy_conte
                 break
         assert sorted(monitor.estimates) == list(range(20))
     talker.destroy_node()
+
+
+def test_the_monitor_counts_the_observations_from_requests_and_estimates(
+    rclpy_context: Any,
+) -> None:
+    """It does not read the observations (a reader more of each at the demand instants): those
+    the recorder must hold before the run stops are the cameras each request asked less those
+    its estimate names missing."""
+    from activesurv_bringup.experiments.graph import RunMonitor
+    from activesurv_common.ros import qos, topics
+    from activesurv_interfaces.msg import CaptureRequest, TargetEstimate
+
+    talker = rclpy_context.create_node('dispatch_and_fusion_stand_in')
+    requests = talker.create_publisher(CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS_LATCHED)
+    estimates = talker.create_publisher(TargetEstimate, topics.TARGET_ESTIMATE, qos.EVENTS_LATCHED)
+    with RunMonitor([]) as monitor:
+        deadline = time.monotonic() + 10.0
+        while (
+            time.monotonic() < deadline
+            and min(requests.get_subscription_count(), estimates.get_subscription_count()) < 1
+        ):
+            monitor.spin(0.05)
+        requests.publish(CaptureRequest(demand_index=3, camera_ids=['cam1', 'cam2', 'cam3']))
+        estimates.publish(TargetEstimate(demand_index=3, cameras_missing=['cam2']))
+        requests.publish(CaptureRequest(demand_index=4, camera_ids=['cam1']))  # not decided
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not (3 in monitor.estimates and 4 in monitor._asked):
+            monitor.spin(0.05)
+        assert monitor.observations_expected() == {(3, 'cam1'), (3, 'cam3')}
+        observations = monitor.node.resolve_topic_name(topics.MARKER_OBSERVATIONS)
+        recorded = {observations: 1, monitor.node.resolve_topic_name(topics.CAPTURE_REQUEST): 2}
+        monitor.recorded = {**recorded, monitor.node.resolve_topic_name(topics.TARGET_ESTIMATE): 1}
+        assert monitor.unrecorded() == {observations: 1}
+        assert observations not in {s.topic_name for s in monitor.node.subscriptions}
+    talker.destroy_node()

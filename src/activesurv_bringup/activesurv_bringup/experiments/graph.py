@@ -425,7 +425,6 @@ class RunMonitor(Observer):
             CaptureRequest, topics.CAPTURE_REQUEST, self._on_request, qos.EVENTS_LATCHED
         )
 
-
     def _on_request(self, msg: CaptureRequest) -> None:
         index = int(msg.demand_index)
         self.heard[self._request_topic].add((index, ''))

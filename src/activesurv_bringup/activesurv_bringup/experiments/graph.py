@@ -411,9 +411,9 @@ class RunMonitor(Observer):
         # Per-demand events heard here, by resolved topic name: the run stops only once the
         # recorder has as many of each (a reliable reader holds every message after a lost one
         # until the writer repairs it, which over a loaded network can take seconds). The
-        # observations are not read here (a fourth reader of every observation cost the
-        # estimate 0.4 ms at the instants): those of a demand are its request's cameras that
-        # its estimate does not name missing.
+        # observations are not read here (one delivery fewer of each at the instants; its effect
+        # on the latency is within the runs' spread, docs/performance.md): those of a demand are
+        # its request's cameras that its estimate does not name missing.
         self._estimate_topic = node.resolve_topic_name(topics.TARGET_ESTIMATE)
         self._request_topic = node.resolve_topic_name(topics.CAPTURE_REQUEST)
         self._observation_topic = node.resolve_topic_name(topics.MARKER_OBSERVATIONS)

@@ -30,6 +30,7 @@ from typing import Any
 
 HERE = Path(__file__).resolve().parent.parent
 EXPERIMENT = ['--set', 'A', '--system', 'fast', '--seed', '7']
+_INHERITED = ('LD_LIBRARY_PATH', '_ROS_WHEELS_BOOTSTRAP_COMPLETE', 'AMENT_PREFIX_PATH')
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,8 @@ def _checkout(path: Path) -> Path:
 
 
 def _run(exe: Path, out: Path, domain: int, extra: list[str]) -> float:
-    env = dict(os.environ)
+    # Each checkout's own Python sets its library path (ROS wheels' bootstrap): none of ours.
+    env = {k: v for k, v in os.environ.items() if k not in _INHERITED}
     env.update(
         ROS_DOMAIN_ID=str(domain),
         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',

@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -12,7 +15,13 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'scripts'))
 
-from compare_revisions import RunFigures, main, read_run, summarise  # noqa: E402
+from compare_revisions import (  # noqa: E402
+    RunFigures,
+    main,
+    read_run,
+    summarise,
+    tree_cpu_seconds,
+)
 
 pytestmark = pytest.mark.meta
 
@@ -67,3 +76,17 @@ def test_bad_arguments_are_refused_before_any_run(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match='make setup'):
         main(['--old', str(tmp_path), '--out', str(tmp_path / 'new')])
     assert not (tmp_path / 'new').exists()
+
+
+def test_a_process_trees_cpu_counts_its_children() -> None:
+    spin = 'import time\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass\n'
+    child = subprocess.Popen([sys.executable, '-c', spin + 'time.sleep(5)'])
+    try:
+        deadline = time.monotonic() + 10.0
+        while tree_cpu_seconds(child.pid) < 0.25 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert tree_cpu_seconds(child.pid) >= 0.25
+        assert tree_cpu_seconds(os.getpid()) >= tree_cpu_seconds(child.pid)
+    finally:
+        child.kill()
+        child.wait()

@@ -18,6 +18,9 @@ from activesurv_recording.run_record import RunRecord
 
 S = TypeVar('S', bound=Enum)
 
+TRUTH_TOLERANCE = 1e-3
+"""s past the newest truth sample an instant may lie and still take it (stamps' rounding)."""
+
 
 def _status(kind: type[S], value: Any) -> S | None:
     """A recorded status constant as its enum (None for a value the enum does not know)."""

@@ -27,6 +27,7 @@ from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_evaluation.records import (
     DEMAND_TOPICS,
+    TRUTH_TOLERANCE,
     DemandMessages,
     demand_record,
     msg_stamp,
@@ -48,8 +49,6 @@ from activesurv_recording.errors import BagError
 from activesurv_recording.run_record import ExperimentRun, RunRecord, read_run_record
 
 TOPICS = DEMAND_TOPICS | {'/diagnostics'}  # an experiment's: its stage faults too
-TRUTH_TOLERANCE = 1e-3
-"""s past the newest truth sample an instant may lie and still take it (stamps' rounding)."""
 
 
 def demand_truth(

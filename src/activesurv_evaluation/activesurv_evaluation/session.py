@@ -18,6 +18,7 @@ from activesurv_common.sensor_model import SensorModel
 from activesurv_common.timeseries import TimeSeries
 from activesurv_evaluation.records import (
     DEMAND_TOPICS,
+    TRUTH_TOLERANCE,
     DemandMessages,
     demand_record,
     msg_stamp,
@@ -154,11 +155,13 @@ def _demand_rows(heard: _SessionBag, record: RunRecord, obstacles: Any) -> list[
             if req is not None
             else msg_vector(heard.estimates[j][0].position)
         )
-        s = min(here, key=lambda v: float(np.linalg.norm(v[:3] - guess)))
+        s = _nearest(here, guess)
         blocking = None
         if obstacles is not None:  # the other objects' plates stand in the way too
             blocking = list(obstacles) + [
-                plate_box(o[:3], o[3:], PLATE_HALF_SIZE) for o in here if o is not s
+                plate_box(o[:3], o[3:], PLATE_HALF_SIZE)
+                for o in here
+                if o is not s and np.all(np.isfinite(o))
             ]
         observed = heard.observations.get(j, [])
         est = heard.estimates.get(j)
@@ -227,11 +230,24 @@ def _pass_of(
 def _objects_at(
     truths: dict[int, TimeSeries], presents: dict[int, TimeSeries], t: float
 ) -> list[np.ndarray]:
-    """Side marker and normal (6,) of every object on the table at ``t``."""
+    """Side marker and normal (6,) of every object on the table at ``t``: its states around
+    ``t`` interpolated; NaN for an object on the table whose states do not reach ``t`` (a stop
+    ended the table first: its last state held would be a stale truth, 5 mm off for an object
+    at 20 mm/s 0.25 s on), so that its demand is kept without errors, as an experiment's."""
     out = []
     for slot, series in truths.items():
         here = presents[slot].at(t, hold=0.5)
-        s = series.at(t, hold=0.5)
-        if s is not None and here is not None and here[0] > 0.5:
-            out.append(s)
+        if here is None or here[0] <= 0.5:
+            continue
+        s = series.at(t, hold=TRUTH_TOLERANCE)
+        out.append(s if s is not None else np.full(6, np.nan))
     return out
+
+
+def _nearest(here: list[np.ndarray], guess: np.ndarray) -> np.ndarray:
+    """The object of ``here`` nearest ``guess`` (one whose truth is unknown only if no other
+    is known)."""
+    known = [v for v in here if np.all(np.isfinite(v))]
+    if not known:
+        return here[0]
+    return min(known, key=lambda v: float(np.linalg.norm(v[:3] - guess)))

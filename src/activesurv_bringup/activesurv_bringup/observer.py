@@ -278,6 +278,7 @@ class Observer:
         frame only when called: :meth:`trigger`)."""
         frames: deque[tuple[float, bytes]] = deque(maxlen=FRAMES_KEPT)
         self.frames[camera_id] = frames
+        self._capture_publisher()  # made now: matched to the cameras by the first capture
         if trigger_service:
             self._triggers[camera_id] = self.node.create_client(Trigger, trigger_service)
 
@@ -301,10 +302,11 @@ class Observer:
         Raises:
             NodeDiedError: if no frame stamped at or after the instant comes in ``timeout``.
         """
-        if self._capture_pub is None:
-            self._capture_pub = self.node.create_publisher(
-                CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS
-            )
+        pub = self._capture_publisher()
+        # A request published before the camera's reader matched is lost (volatile): the
+        # first capture of a session on a slow host otherwise waited out its timeout.
+        if not self.spin_until(lambda: pub.get_subscription_count() > 0, timeout):
+            raise NodeDiedError(f'nothing subscribes to {topics.CAPTURE_REQUEST} ({camera_id})')
         t = self.now() + CAPTURE_LEAD
         msg = CaptureRequest()
         msg.header.stamp = self.node.get_clock().now().to_msg()
@@ -314,7 +316,7 @@ class Observer:
         msg.camera_ids = [camera_id, *latched]
         frames = self.frames[camera_id]
         frames.clear()
-        self._capture_pub.publish(msg)
+        pub.publish(msg)
         if camera_id in self._triggers:  # it exposes when called: at the instant
             self.spin_until(lambda: self.now() >= t, CAPTURE_LEAD + 1.0)
             self.trigger(camera_id)
@@ -328,6 +330,13 @@ class Observer:
             )
         data = next(d for s, d in frames if s >= t - 1e-6)
         return np.asarray(image_to_gray(deserialize_message(data, Image)), dtype=np.uint8)
+
+    def _capture_publisher(self) -> Any:
+        if self._capture_pub is None:
+            self._capture_pub = self.node.create_publisher(
+                CaptureRequest, topics.CAPTURE_REQUEST, qos.EVENTS
+            )
+        return self._capture_pub
 
     def triggered(self, camera_id: str) -> bool:
         """Whether the camera sends frames only when :meth:`trigger` calls it."""

@@ -45,6 +45,9 @@ from activesurv_recording.bagio import cdr_header
 FRAMES_KEPT = 60  # per camera: two seconds of a 30 Hz driver
 Positions = Sequence[float] | NDArray[np.float64]  # m or rad, per joint
 CAPTURE_LEAD = 0.15  # s from a capture request to its instant (the camera's notice)
+# s a capture waits for its frame: commissioning on a slow host beside other work (two
+# clean-clone test suites on a 1.6x slower host) saw a first frame miss 5 s.
+CAPTURE_TIMEOUT = 15.0
 DRAIN_WAIT = 0.002  # s: spin_batched's last round, that finds nothing waiting
 DRAIN_ROUNDS = 10_000  # what one batch handles at most (the rest waits for the next)
 
@@ -294,7 +297,7 @@ class Observer:
         self.node.create_subscription(CameraInfo, info_topic, keep_info, qos.SENSOR)
 
     def capture(
-        self, camera_id: str, latched: Sequence[str], timeout: float = 5.0
+        self, camera_id: str, latched: Sequence[str], timeout: float = CAPTURE_TIMEOUT
     ) -> NDArray[np.uint8]:
         """Trigger ``camera_id`` (and latch the ``latched`` stages) a moment from now; its
         frame, grey.

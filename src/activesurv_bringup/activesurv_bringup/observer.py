@@ -45,9 +45,11 @@ from activesurv_recording.bagio import cdr_header
 FRAMES_KEPT = 60  # per camera: two seconds of a 30 Hz driver
 Positions = Sequence[float] | NDArray[np.float64]  # m or rad, per joint
 CAPTURE_LEAD = 0.15  # s from a capture request to its instant (the camera's notice)
-# s a capture waits for its frame: commissioning on a slow host beside other work (two
-# clean-clone test suites on a 1.6x slower host) saw a first frame miss 5 s.
-CAPTURE_TIMEOUT = 15.0
+# s a capture waits for its frame, and how many requests it makes: commissioning on a slow host
+# beside other work (clean-clone test suites on a 1.6x slower host) saw a first request bring
+# no frame in 5 s, and in 15 s.
+CAPTURE_TIMEOUT = 10.0
+CAPTURE_ATTEMPTS = 2
 DRAIN_WAIT = 0.002  # s: spin_batched's last round, that finds nothing waiting
 DRAIN_ROUNDS = 10_000  # what one batch handles at most (the rest waits for the next)
 
@@ -302,14 +304,26 @@ class Observer:
         """Trigger ``camera_id`` (and latch the ``latched`` stages) a moment from now; its
         frame, grey.
 
+        A request that brings no frame is made once more, for a new instant (a slow host's
+        first request of a session was seen to bring none), before the camera is given up.
+
         Raises:
-            NodeDiedError: if no frame stamped at or after the instant comes in ``timeout``.
+            NodeDiedError: if neither request brings a frame stamped at or after its instant
+                in ``timeout``.
         """
         pub = self._capture_publisher()
         # A request published before the camera's reader matched is lost (volatile): the
         # first capture of a session on a slow host otherwise waited out its timeout.
         if not self.spin_until(lambda: pub.get_subscription_count() > 0, timeout):
             raise NodeDiedError(f'nothing subscribes to {topics.CAPTURE_REQUEST} ({camera_id})')
+        for _attempt in range(CAPTURE_ATTEMPTS - 1):
+            with contextlib.suppress(NodeDiedError):
+                return self._capture_once(pub, camera_id, latched, timeout)
+        return self._capture_once(pub, camera_id, latched, timeout)
+
+    def _capture_once(
+        self, pub: Any, camera_id: str, latched: Sequence[str], timeout: float
+    ) -> NDArray[np.uint8]:
         t = self.now() + CAPTURE_LEAD
         msg = CaptureRequest()
         msg.header.stamp = self.node.get_clock().now().to_msg()

@@ -28,7 +28,7 @@ least ``interval`` / N apart (N: the most objects expected at once).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -100,12 +100,23 @@ class MultiTracker:
     manoeuvres_of_dead: int = 0
     _next_index: int = 0
     _index: dict[tuple[int, int], int] = field(default_factory=dict)
+    _assign: Callable[[NDArray[np.float64]], tuple[NDArray[np.intp], NDArray[np.intp]]] = field(
+        init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         if self.at_once < 1:
             raise PredictionError(f'objects at once must be >= 1, got {self.at_once}')
         if not (math.isfinite(self.gate) and self.gate > 0 and self.near >= 0):
             raise PredictionError('gate must be > 0 and near >= 0')
+        # Paid here, at the node's start, not on the first fix with a track: the first
+        # association imports scipy.optimize (0.5 s alone, 3.5 s on a loaded 2-core host, where
+        # it stalled the predictor and dispatcher for the first demands of two objects at
+        # once), and a first tracker may import its filter's library (filterpy for 'ca').
+        from scipy.optimize import linear_sum_assignment
+
+        self._assign = linear_sum_assignment
+        self._new_tracker()
 
     def _new_tracker(self) -> Tracker:
         return Tracker(
@@ -153,11 +164,7 @@ class MultiTracker:
                     d2 = float(d @ S_inv @ d)
                     if d2 <= self.gate or (young and float(np.hypot(*d)) <= self.near):
                         cost[i, j] = min(d2, self.gate)
-            # Imported here: scipy.optimize is half a second of every predictor's start, and
-            # only several objects at once (objects_at_once > 1) associate fixes with tracks.
-            from scipy.optimize import linear_sum_assignment
-
-            rows, cols = linear_sum_assignment(cost)
+            rows, cols = self._assign(cost)
             for i, j in zip(rows, cols, strict=True):
                 if cost[i, j] >= _FAR:
                     continue

@@ -162,3 +162,33 @@ def test_a_frame_older_than_a_track_update_is_taken_without_error() -> None:
     assert len(tracker.tracks) == before
     tracker.update(2.0, [crossing(2.0, 0.07, 0.0, False), np.array([0.3, 0.15])])
     assert len(tracker.tracks) == before + 1
+
+
+@pytest.mark.parametrize('model', ['imm', 'ca'])
+def test_the_fix_path_imports_nothing(model: str) -> None:
+    """A tracker pays its imports when it is made (at the node's start), never on a fix: the
+    first association imported scipy.optimize on a fix, which stalled the predictor and the
+    dispatcher 3.5 s on a loaded 2-core host and lost the first demands of two objects."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(f"""
+        import sys
+        import numpy as np
+        from activesurv_prediction.multi import MultiTracker
+        tracker = MultiTracker(model={model!r}, interval=2.0, at_once=2)
+        before = set(sys.modules)
+        for step in range(60):
+            t = step / 10.0
+            fixes = [np.array([0.02 + 0.02 * t, 0.06])]
+            if t > 1.0:
+                fixes.append(np.array([0.48 - 0.02 * t, 0.14]))
+            tracker.update(t, fixes)
+            tracker.check_timeout(t)
+        assert [e.object_id for e in tracker.estimates(6.0)] == [1, 2], tracker.estimates(6.0)
+        print(sorted({{m.split('.')[0] for m in set(sys.modules) - before}}))
+    """)
+    r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip() == '[]', f'imported on a fix: {r.stdout}'

@@ -80,10 +80,12 @@ def test_sim_stage_stream_respects_limits(
         for col, v_max, a_max in ((1, 0.025, 0.10), (2, 0.2, 0.8)):
             v = np.diff(s[:, col]) / np.diff(t)
             assert np.max(np.abs(v)) <= v_max * 1.01
-            a = np.diff(v) / np.diff(t)[1:]
-            # Finite differences of sampled positions: allow for sampling jitter (a loaded
-            # machine's stamps: 1.51 x seen once).
-            assert np.percentile(np.abs(a), 99) <= a_max * 2.0
+            # The second divided difference over unevenly spaced samples: the slopes of two
+            # neighbouring intervals differ by at most a_max times the distance between the
+            # intervals' midpoints, (t[i+2] - t[i]) / 2, for any spacing (a loaded machine's
+            # stamps are uneven; dividing by the second interval alone read 2.7x a_max).
+            a = np.diff(v) / ((t[2:] - t[:-2]) / 2.0)
+            assert np.max(np.abs(a)) <= a_max * 1.01 + 1e-3, np.max(np.abs(a))
         # Out of the soft limits or for an unknown joint: refused, nothing moves.
         pub.publish(_goal(['cam1_x', 'nope'], [0.5, 0.0]))
         n = stage.counts['refused']

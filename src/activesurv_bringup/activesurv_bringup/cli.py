@@ -16,6 +16,7 @@ import json
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -562,6 +563,7 @@ def _experiment_on_rig(
     choice = hardware_choice(hw, calibration)
     hw = with_measured_delays(hw, calibration_dir(hw, calibration), say)
     exp = load_experiment(set_name, system, seed, trajectory, expect, rig=choice)
+    _preload_evaluation()
     with results_on_stop(out):
         run_hardware(
             exp.with_predictor(predictor), hw, out, opts, say, home or hw.home, motion_correction
@@ -604,6 +606,7 @@ def _simulated(
 
     if opts.dds_profile is not None:
         say(f'Fast DDS profile {opts.dds_profile}')
+    _preload_evaluation()
     with results_on_stop(out):
         run_graph(exp, out, opts, progress=say)
     from activesurv_evaluation.runs import finish_run
@@ -616,6 +619,21 @@ def _simulated(
         if png is not None:
             say(f'what ran around the median demand: {png} (every demand: timeline.json)')
     return doc
+
+
+def _preload_evaluation() -> None:
+    """Import the evaluation a run ends with in a daemon thread, while the graph starts (the
+    orchestrator waits for its nodes then): scipy.optimize and Stone Soup cost 1.1 s of a 2-core
+    host at the end, and a run stopped by SIGTERM has 10 s to write its results and leave."""
+
+    def load() -> None:
+        with contextlib.suppress(Exception):  # the evaluation reports its errors when it runs
+            import stonesoup.measures
+            import stonesoup.metricgenerator.ospametric  # noqa: F401
+
+            import activesurv_evaluation.runs  # noqa: F401
+
+    threading.Thread(target=load, name='preload-evaluation', daemon=True).start()
 
 
 @contextlib.contextmanager
@@ -687,6 +705,7 @@ def _scene(
         f'{scene.duration:.0f} s'
     )
     started = time.monotonic()
+    _preload_evaluation()
     doc = run_surveil(out, session, opts, say)
     print(session_table(doc), flush=True)
     say(f'done in {time.monotonic() - started:.1f} s -> {out / "results.json"}')
@@ -736,6 +755,7 @@ def surveil(
         print(f'  surveil: {text}', flush=True)
 
     home = home or (hardware is not None and hardware.home)
+    _preload_evaluation()
     doc = run_surveil(out, session, options, say, hardware, home)
     s = doc['summary']
     lat = s['latency_median_ms']

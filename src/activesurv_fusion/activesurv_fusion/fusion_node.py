@@ -130,9 +130,12 @@ class FusionNode(Node):
     def _on_tick(self) -> None:
         self._publish_ready(self._collector.pop_ready(self._now()))
 
-    def flush(self) -> None:
-        """Answer every open demand now (on shutdown), so none is left silent."""
-        self._publish_ready(self._collector.flush())
+    def flush(self) -> int:
+        """Answer every open demand now (on shutdown), so none is left silent; returns how
+        many were answered."""
+        batches = self._collector.flush()
+        self._publish_ready(batches)
+        return len(batches)
 
     def _publish_ready(self, batches: list[DemandBatch], started: float | None = None) -> None:
         started = time.thread_time() if started is None else started

@@ -152,9 +152,9 @@ class ImagerNode(Node):
             image = found[1] if found is not None and self.views.records_frames else None
             self.views.publish(obs, self.core.camera, image)  # annotations, frame: later
 
-    def flush(self) -> None:
-        """The views still waiting go out (the node stops)."""
-        self.views.flush()
+    def flush(self) -> int:
+        """The views still waiting go out (the node stops); returns how many."""
+        return self.views.flush()
 
     def _publish_diagnostics(self) -> None:
         bad = sum(n for k, n in self.counts.items() if k != 'OK')

@@ -20,7 +20,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
-import sys
 import threading
 import time
 from pathlib import Path
@@ -33,7 +32,7 @@ from std_msgs.msg import String
 
 from activesurv_common.pacing import Backoff
 from activesurv_common.ros import qos, topics
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_common.timeseries import ClockEstimate
 from activesurv_recording.bagio import (
@@ -197,4 +196,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    exit_now(main())  # the bag is closed by then: no interpreter teardown (a SIGTERM's 10 s)

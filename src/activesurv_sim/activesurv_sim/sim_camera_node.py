@@ -169,8 +169,8 @@ class SimCameraNode(Node):
         self.frames_published += 1
         self.frames_ahead += int(ahead)
 
-    def flush(self) -> None:
-        self.later.flush()  # at stop: the DDS copies still waiting
+    def flush(self) -> int:
+        return self.later.flush()  # at stop: the DDS copies still waiting (how many)
 
     def _on_tick(self) -> None:
         g = self.get_parameter

@@ -47,20 +47,24 @@ class Deferred:
         if self._timer is None:
             self._arm(self.delay)
 
-    def flush(self) -> None:
-        """Run all the work waiting, now, in order (a node's stop). Work that raises (its
-        publisher's context already shut down) is logged and the rest still runs."""
+    def flush(self) -> int:
+        """Run all the work waiting, now, in order (a node's stop); returns how much work ran.
+        Work that raises (its publisher's context already shut down) is logged and the rest
+        still runs."""
+        ran = 0
         try:
             self._disarm()
         except Exception:  # the node's context already gone: its timer goes with it
             self._timer = None
         while self._queue:
+            ran += 1
             try:
                 self._run(self._queue.popleft()[1])
             except Exception as exc:  # any work's error: the rest must still go out
                 self.failed += 1
                 why = f'deferred work failed at stop: {type(exc).__name__}: {exc}'
                 self._node.get_logger().warning(why)
+        return ran
 
     def _arm(self, wait: float) -> None:
         self._timer = self._node.create_timer(max(wait, 0.0), self._on_timer, clock=self._steady)

@@ -18,12 +18,13 @@ selects rclpy's ``SingleThreadedExecutor`` instead.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
 from types import FrameType
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -215,3 +216,16 @@ def help_text(name: str, factory: Callable[..., Any]) -> str:
             default = p.default if plain else 'unset'
             lines.append(f'  {p.name} (default: {default!r}): {p.description}')
     return '\n'.join(lines)
+
+
+def exit_now(code: int) -> NoReturn:
+    """Leave the process at once once ``main`` is done: its nodes destroyed, the bag closed,
+    rclpy shut down; the DDS participant is destroyed here (the others hear it leave, its
+    shared memory is released). What is skipped is the interpreter's own teardown of numpy,
+    OpenCV and the node objects: 0.2-0.3 s a process, 2 s of a signalled run's exit. Buffered
+    Python files not closed by ``main`` would lose their tail: a node's ``main`` closes its own."""
+    with contextlib.suppress(Exception):
+        rclpy.utilities.get_default_context().destroy()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

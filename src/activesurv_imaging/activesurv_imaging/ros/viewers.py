@@ -51,9 +51,9 @@ class ObservationViews:
         frame it was measured on, a sensor_msgs/Image) is recorded with ``record_frames``."""
         self.later(lambda: self._publish(obs, camera, image))
 
-    def flush(self) -> None:
-        """Publish every view still waiting, now (the node stops)."""
-        self.later.flush()
+    def flush(self) -> int:
+        """Publish every view still waiting, now (the node stops); returns how many."""
+        return self.later.flush()
 
     def _publish(self, obs: Observation, camera: CameraModel | None, image: Any) -> None:
         size = (camera.width, camera.height) if camera is not None else (640, 480)

@@ -18,19 +18,18 @@ The members file::
          parameters: {use_sim_time: true, ...}, remappings: {}}
 
 SIGINT/SIGTERM end the spin; then nodes with a ``flush()`` (fusion answers its open demands)
-flush, the executor runs a little longer so those answers leave, nodes with a ``close()``
-(the recorder) close, and all are destroyed. A member that cannot start stops the container
-with ``<member>: error: <reason>`` and exit status 1, as its console script would.
+flush, the executor runs a little longer so those answers leave (only if one sent any), nodes
+with a ``close()`` (the recorder) close, and all are destroyed. A member that cannot start
+stops the container with ``<member>: error: <reason>`` and exit status 1, as its console script
+would.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import rclpy
 import yaml
@@ -38,7 +37,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
 from activesurv_common.ros import callback_cpu, fast_logging, local_topics
-from activesurv_common.ros.node import StopRequest, make_executor, one_line, spin_until_signal
+from activesurv_common.ros.node import (
+    StopRequest,
+    exit_now,
+    make_executor,
+    one_line,
+    spin_until_signal,
+)
 from activesurv_common.yamlio import load_yaml
 from activesurv_launch.launcher import NodeSpec
 from activesurv_launch.ros.compose import build_node, share_clock
@@ -110,8 +115,10 @@ def main(argv: list[str] | None = None) -> int:
         for n in nodes:
             flush = getattr(n, 'flush', None)
             if callable(flush):
-                flush()  # fusion answers its open demands while the recorder still listens
-                flushed = True
+                sent = flush()  # fusion answers its open demands while the recorder listens
+                # The executor runs on only for what went out (how many: None if unknown): an
+                # idle camera leaves at once (0.3 s each of a signalled run's exit).
+                flushed = flushed or sent is None or sent > 0
         end = time.monotonic() + (0.3 if flushed else 0.0)
         while rclpy.ok() and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
@@ -128,18 +135,6 @@ def main(argv: list[str] | None = None) -> int:
             n.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def exit_now(code: int) -> NoReturn:
-    """Leave the process at once once ``main`` is done: its nodes destroyed, the bag closed,
-    rclpy shut down; the DDS participant is destroyed here (the others hear it leave, its
-    shared memory is released). What is skipped is the interpreter's own teardown of numpy,
-    OpenCV and the node objects: 0.2-0.3 s a container, 2 s of a signalled run's exit."""
-    with contextlib.suppress(Exception):
-        rclpy.utilities.get_default_context().destroy()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
 
 
 if __name__ == '__main__':

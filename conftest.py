@@ -69,14 +69,11 @@ HEAVY_LAST = (
     'test_hardware_lab.py', 'test_lab.py',
 )  # fmt: skip
 
-# Graph-tier modules the other worker runs (a unit of their own) beside the graph worker's
-# lighter runs, in the middle of its queue: after the package tests up to SIDE_AFTER (by then
-# the session's colcon build is done) and well before the graph worker reaches the heavy ones.
-# They and the heavy ones never run at once (:func:`_machine_lock`): the lab still has the
-# machine to itself. Last in that worker's queue they met the heavy ones: the graph worker
-# waited 80 s for the lock, and its 785 s were the suite's 800 s (a 2-core EPYC host).
-SIDE_GRAPH = ('test_set_c.py', 'test_faults.py', 'test_stop.py', 'test_live_view.py')
-SIDE_AFTER = 'activesurv_imaging'
+# Graph-tier modules the other worker runs once its own tests are done (a unit of their own,
+# last in its queue), beside the graph worker's runs: ten minutes of graph tests in one worker
+# left the other idle for seven. They and the heavy ones above never run at once
+# (:func:`_machine_lock`): the lab still has the machine to itself.
+SIDE_GRAPH = ('test_set_c.py', 'test_faults.py')
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -102,18 +99,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 def _one_graph_worker(items: list[pytest.Item]) -> None:
     """Order a worker's collection (graph tier first, the colcon build's test and the heaviest
-    last; the rest after, with the side graph modules after the early package tests) and write
-    each test's group where the controller's scheduler reads it: xdist's own ``xdist_group``
-    rewrites node ids, which pytest 9 no longer lets it do."""
+    last, the rest after) and write each test's group where the controller's scheduler reads
+    it: xdist's own ``xdist_group`` rewrites node ids, which pytest 9 no longer lets it do."""
 
     def rank(item: pytest.Item) -> tuple[int, int]:
         name = item.path.name
         if item.get_closest_marker('graph') is None:
-            parts = Path(str(item.path)).resolve().relative_to(ROOT).parts
-            early = parts[0] == 'src' and parts[1] <= SIDE_AFTER
-            return (2, 0) if early else (2, 2)
+            return (2, 0)
         if name in SIDE_GRAPH:
-            return (2, 1)
+            return (3, 0)
         if name == COLCON_TEST:  # its build, started with the session, is done by then
             return (1, -1)
         return (1, HEAVY_LAST.index(name)) if name in HEAVY_LAST else (0, 0)

@@ -28,7 +28,7 @@ from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, local_topics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, sec_to_time, time_to_sec
 from activesurv_common.ros.fine_clock import FineClock
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_common.sensor_model import SensorModel
 from activesurv_dispatch.conversions import (
@@ -197,4 +197,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

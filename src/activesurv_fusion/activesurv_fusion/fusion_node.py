@@ -36,7 +36,7 @@ from activesurv_common.ros import diagnostics, qos, ready, topics
 from activesurv_common.ros.conversions import time_to_sec
 from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.instants import InstantTimers
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_fusion.collector import DemandBatch, DemandCollector, resolve
 from activesurv_fusion.conversions import (
@@ -183,4 +183,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

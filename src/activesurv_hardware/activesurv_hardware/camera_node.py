@@ -34,7 +34,7 @@ from std_srvs.srv import Trigger
 from activesurv_common.camera_model import CameraModel
 from activesurv_common.ros import diagnostics, qos, topics
 from activesurv_common.ros.conversions import CameraInfoStamper, gray_to_image
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_hardware.errors import CameraSourceError, HardwareError
 from activesurv_hardware.video_source import VideoSource, is_file
@@ -194,4 +194,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

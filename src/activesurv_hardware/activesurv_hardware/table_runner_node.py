@@ -23,7 +23,7 @@ from activesurv_common.errors import GeometryError
 from activesurv_common.object_geometry import ObjectGeometry
 from activesurv_common.ros import qos, topics
 from activesurv_common.ros.conversions import joint_vector, sec_to_time, time_to_sec
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_hardware.errors import HardwareError
 from activesurv_hardware.path_runner import PathRunner, StreamRunner, TruthFromController
@@ -157,4 +157,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

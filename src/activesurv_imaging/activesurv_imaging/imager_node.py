@@ -40,7 +40,7 @@ from activesurv_common.ros.conversions import (
 )
 from activesurv_common.ros.fine_clock import FineClock
 from activesurv_common.ros.instants import periodic
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_imaging.capture import CaptureCore, core_from_parameters
 from activesurv_imaging.conversions import info_disagreement, observation_to_msg
@@ -176,4 +176,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -24,7 +24,7 @@ from activesurv_common.camera_model import CameraModel
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.ros import diagnostics, local_topics, qos, ready, topics
 from activesurv_common.ros.conversions import image_to_gray, model_from_camera_info
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_imaging.conversions import info_disagreement
 from activesurv_imaging.errors import VisionErrors
@@ -179,4 +179,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -29,7 +29,7 @@ from activesurv_common.errors import CalibrationError
 from activesurv_common.geometry import Transform, matrix_from_quaternion
 from activesurv_common.ros import local_topics, qos, topics
 from activesurv_common.ros.conversions import joint_vector, transform_stamped
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_dispatch.sensors import load_setup
 from activesurv_stages.config import MOTION_CLASSES
@@ -124,4 +124,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -22,7 +22,7 @@ from rclpy.qos import DurabilityPolicy
 
 from activesurv_common.pacing import Backoff
 from activesurv_common.ros import qos
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_liveview.live import DEFAULT_TOPICS, LatchedCache, LiveFilter
 from activesurv_recording.bagio import cdr_header, typestore
@@ -147,4 +147,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

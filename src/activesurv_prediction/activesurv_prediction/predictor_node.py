@@ -24,7 +24,7 @@ from visualization_msgs.msg import MarkerArray
 from activesurv_common.pacing import ViewThrottle
 from activesurv_common.ros import diagnostics, local_topics, qos, ready, topics
 from activesurv_common.ros.conversions import time_to_sec
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import DemandHorizon, ObjectTracks
 from activesurv_prediction.conversions import horizon_to_msg, track_markers, tracks_to_msg
@@ -197,4 +197,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import statistics
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -28,7 +27,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_recording.bagio import cdr_header
 
@@ -148,4 +147,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    exit_now(main())  # no interpreter teardown once main is done

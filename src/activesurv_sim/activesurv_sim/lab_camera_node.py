@@ -40,7 +40,7 @@ from activesurv_common.ros.conversions import (
     sec_to_time,
     time_to_sec,
 )
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import ObjectState
 from activesurv_sim import conversions as conv
@@ -196,4 +196,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -39,7 +39,7 @@ from activesurv_common.ros.conversions import (
     time_to_sec,
 )
 from activesurv_common.ros.deferred import Deferred
-from activesurv_common.ros.node import run_node
+from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import declare
 from activesurv_interfaces.msg import CaptureRequest, ObjectState
 from activesurv_sim.conversions import object_topic, published_model, simulated_camera
@@ -197,4 +197,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    exit_now(main())  # no interpreter teardown once main is done

@@ -146,7 +146,7 @@ def run_node(
     name: str,
     factory: Callable[[], N],
     args: list[str] | None = None,
-    on_stop: Callable[[N], None] | None = None,
+    on_stop: Callable[[N], object] | None = None,
     errors: tuple[type[Exception], ...] = (),
 ) -> int:
     """Construct ``factory()`` and spin it until SIGINT/SIGTERM or an external shutdown.

@@ -43,11 +43,15 @@ $(STAMPS)/venv:
 	$(PYTHON) -m venv $(VENV)
 	@mkdir -p $(STAMPS) && touch $@
 
-# The wheels' modules byte-compiled on both cores after the install (pip compiles them one at a
-# time: 123 s -> 108 s here); a module that does not compile (a template) is not ours to fix.
+# The wheels come through uv (pinned in constraints.txt): it downloads and unpacks them in
+# parallel and byte-compiles them on every core, 12 s here where pip took 108 s. Where uv cannot
+# reach the wheels (a mirror known only to pip's configuration), pip installs them instead.
+UV := $(VENV)/bin/uv
 $(STAMPS)/deps: $(STAMPS)/venv requirements.txt constraints.txt
-	$(PIP) install -q --no-compile -r requirements.txt -c constraints.txt
-	-@$(PY) -m compileall -q -j 2 $$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))') > /dev/null
+	$(PIP) install -q -c constraints.txt uv
+	$(UV) pip install -q --python $(PY) --compile-bytecode -r requirements.txt -c constraints.txt \
+	  || { echo 'uv could not install the wheels: pip installs them (slower)'; \
+	       $(PIP) install -q -r requirements.txt -c constraints.txt; }
 	@touch $@
 
 $(STAMPS)/interfaces: $(STAMPS)/deps $(IFACE_SRC)
@@ -57,7 +61,8 @@ $(STAMPS)/interfaces: $(STAMPS)/deps $(IFACE_SRC)
 # Beside the interfaces' build (it needs only the wheels): the editable installs take the core
 # the kernels leave when they are done.
 $(STAMPS)/packages: $(STAMPS)/deps $(PKG_META)
-	$(PIP) install -q --no-deps --no-build-isolation $(foreach p,$(PKGS),-e src/$(p))
+	$(UV) pip install -q --python $(PY) --no-deps --no-build-isolation $(foreach p,$(PKGS),-e src/$(p)) \
+	  || $(PIP) install -q --no-deps --no-build-isolation $(foreach p,$(PKGS),-e src/$(p))
 	@touch $@
 
 # The imager's and the renderer's compiled loops (numba), cached beside their source: compiled

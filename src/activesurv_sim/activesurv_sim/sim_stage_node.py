@@ -34,7 +34,7 @@ from activesurv_common.ros.node import exit_now, run_node
 from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest, StageGoal
 from activesurv_stages.config import MOTION_CLASSES, motion_class
-from activesurv_stages.conversions import goal_items, joint_state
+from activesurv_stages.conversions import goal_items, joint_state, stale_goal
 from activesurv_stages.errors import ConfigError, LimitError, StageError
 from activesurv_stages.kinematics import AxisLimits, AxisSimulator
 
@@ -104,6 +104,9 @@ class SimStageNode(Node):
         # From the frame it was planned on (its stamp, less than a state period ago), as in
         # lockstep; a real bridge starts it on arrival, 10-20 ms later here.
         now, stamp = self._now(), time_to_sec(msg.header.stamp)
+        if (stale := stale_goal(msg, now)) is not None:
+            self._refuse(stale)
+            return
         now = stamp if now - self._period <= stamp <= now else now
         for joint, position, velocity in goal_items(msg):
             if joint not in self.axes:

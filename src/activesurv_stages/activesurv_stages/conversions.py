@@ -13,6 +13,28 @@ from activesurv_interfaces.msg import StageGoal
 from activesurv_stages.bridge import LinkState, Snapshot
 from activesurv_stages.config import ControllerConfig
 
+GOAL_MAX_AGE = 60.0
+"""s: a goal stamped further than this from the stage's own clock is not followed."""
+
+
+def stale_goal(msg: StageGoal, now: float, max_age: float = GOAL_MAX_AGE) -> str | None:
+    """Why a goal must not move the stage, or None.
+
+    Goals are latched (transient local): a stage that starts hears the last goal of every
+    publisher still alive on its domain, including one of another run (a finished
+    commissioning, a session on the wall clock while this run keeps simulated time). A goal
+    stamped more than ``max_age`` seconds from the stage's clock (before or after) belongs
+    to no plan of this run and is refused. An unstamped goal (zero stamp: sent by hand) is
+    followed.
+    """
+    stamp = float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+    if stamp == 0.0 or abs(now - stamp) <= max_age:
+        return None
+    return (
+        f"goal stamped {stamp:.3f} s, {now - stamp:+.3f} s from this stage's clock "
+        f'(more than {max_age:g} s: a latched goal of another run or clock): ignored'
+    )
+
 
 def goal_items(msg: StageGoal) -> list[tuple[str, float, float | None]]:
     """(joint, position, velocity limit or None) for each joint of a goal.

@@ -35,7 +35,7 @@ from activesurv_common.ros.parameters import Param, declare
 from activesurv_interfaces.msg import CaptureRequest, StageGoal
 from activesurv_stages.bridge import BridgeWorker, LinkState
 from activesurv_stages.config import load_controller
-from activesurv_stages.conversions import bridge_status, goal_items, joint_state
+from activesurv_stages.conversions import bridge_status, goal_items, joint_state, stale_goal
 from activesurv_stages.drivers import make_driver
 from activesurv_stages.errors import StageError
 from activesurv_stages.promises import Promises
@@ -100,7 +100,8 @@ class StageBridgeNode(Node):
 
     def _on_goal(self, msg: StageGoal) -> None:
         # One message's joints are queued together: one move on a multi-axis controller.
-        for reason in self.worker.submit_goals(list(goal_items(msg))):
+        stale = stale_goal(msg, self._now())
+        for reason in [stale] if stale else self.worker.submit_goals(list(goal_items(msg))):
             self.refusals += 1
             self.get_logger().warning(f'goal refused, nothing sent: {reason}')
 

@@ -14,6 +14,7 @@ import yaml
 from rclpy.parameter import Parameter
 
 from activesurv_common.ros import qos, topics
+from activesurv_interfaces.msg import StageGoal
 from activesurv_sim.sim_stage_node import SimStageNode
 from activesurv_stages.emulators import ZaberDeviceSpec, ZaberEmulator
 from activesurv_stages.stage_bridge_node import StageBridgeNode
@@ -117,6 +118,33 @@ def test_static_system_does_not_move(rclpy_context: Any, spin_until: Callable[..
         peer.destroy_node()
 
 
+def test_a_goal_stamped_on_another_clock_moves_no_stage(
+    rclpy_context: Any, spin_until: Callable[..., bool]
+) -> None:
+    """A latched goal of another run (commissioning's, on the wall clock, heard by a run on
+    simulated time) is refused by its stamp; a goal of this clock is followed."""
+    from builtin_interfaces.msg import Time
+
+    stage = SimStageNode(parameter_overrides=[Parameter('initial', value=[0.02, 0.3])])
+    peer = rclpy_context.create_node('stale_goal_test_peer')
+    try:
+        pub = peer.create_publisher(StageGoal, topics.goal('cam1'), qos.GOAL)
+        old = _goal(['cam1_x'], [0.1])
+        old.header.stamp = Time(sec=int(stage._now()) - 3600)  # an hour off this clock
+        pub.publish(old)
+        assert spin_until([stage, peer], lambda: stage.counts['refused'] >= 1)
+        assert 'another run' in stage.last_refusal
+        assert stage.axes['cam1_x'].state(stage._now() + 10.0)[0] == pytest.approx(0.02)
+        fresh = _goal(['cam1_x'], [0.05])
+        fresh.header.stamp = peer.get_clock().now().to_msg()
+        pub.publish(fresh)
+        assert spin_until([stage, peer], lambda: stage.counts['accepted'] >= 1)
+        assert stage.axes['cam1_x'].state(stage._now() + 10.0)[0] == pytest.approx(0.05)
+    finally:
+        stage.destroy_node()
+        peer.destroy_node()
+
+
 def test_stage_bridge_node_against_emulator(
     tmp_path: Path, rclpy_context: Any, spin_until: Callable[..., bool]
 ) -> None:
@@ -172,6 +200,12 @@ def test_stage_bridge_node_against_emulator(
         before = len(emu.received)
         pub.publish(_goal(['cam1_x'], [0.3]))
         assert spin_until([bridge, peer], lambda: bridge.refusals >= 1)
+        assert not any(b'move abs' in line for line in emu.received[before:])
+        # Stamped an hour off the bridge's clock (a latched goal of another run): refused.
+        stale = _goal(['cam1_x'], [-0.1])
+        stale.header.stamp.sec = int(time.time()) - 3600
+        pub.publish(stale)
+        assert spin_until([bridge, peer], lambda: bridge.refusals >= 2)
         assert not any(b'move abs' in line for line in emu.received[before:])
     finally:
         bridge.destroy_node()

@@ -182,9 +182,6 @@ class Commissioner(Observer):
 
         return look
 
-    def close(self) -> None:
-        self.node.destroy_node()
-
 
 def with_response(
     model: CameraModel, estimate: GammaEstimate | None

@@ -9,6 +9,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from sensor_msgs.msg import JointState
 
+from activesurv_common.ros.conversions import time_to_sec
 from activesurv_interfaces.msg import StageGoal
 from activesurv_stages.bridge import LinkState, Snapshot
 from activesurv_stages.config import ControllerConfig
@@ -27,7 +28,7 @@ def stale_goal(msg: StageGoal, now: float, max_age: float = GOAL_MAX_AGE) -> str
     to no plan of this run and is refused. An unstamped goal (zero stamp: sent by hand) is
     followed.
     """
-    stamp = float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+    stamp = time_to_sec(msg.header.stamp)
     if stamp == 0.0 or abs(now - stamp) <= max_age:
         return None
     return (
